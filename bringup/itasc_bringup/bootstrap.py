@@ -1,0 +1,138 @@
+"""The bootstrap (paper §6.1): the root Composer's owner, run as ``ros2 run itasc_bringup bootstrap``.
+
+It validates the application model (a wrong model exits 2 before anything starts), brings up the
+root composite's Coordinator, Composer and Configurator (configuring the root Configurator with
+the model's configurations), commands ``e_<root>_configure`` and lets the life-cycle bring the
+hierarchy to Running. On ``--duration`` expiry, Ctrl-C or SIGTERM it raises ``e_<root>_stop`` and
+waits for the orderly Stop of the whole hierarchy, then exits 0.
+
+    bootstrap <app name or model path> [--duration SECONDS] [--record FILE.mcap]
+              [--deploy single|per-composite] [--rate HZ]
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+
+__all__ = ['main', 'parse_args']
+
+#: How long an orderly Stop may take before the bootstrap gives up waiting.
+STOP_TIMEOUT = 20.0
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='bootstrap', description='Run an iTaSC application model.')
+    parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
+    parser.add_argument('--duration', type=float, default=None, help='stop after SECONDS in Running')
+    parser.add_argument('--record', metavar='FILE.mcap', default=None, help='record the run to MCAP')
+    parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
+    parser.add_argument('--rate', type=float, default=None, help='override the Timer rate (Hz)')
+    args = parser.parse_args(argv)
+    if args.duration is not None and args.duration <= 0:
+        parser.error('--duration must be > 0')
+    if args.rate is not None and args.rate <= 0:
+        parser.error('--rate must be > 0')
+    return args
+
+
+def load(app: str, rate: float | None):
+    """The validated composition model, or exit 2 with the model error."""
+    from itasc_core.composition.loader import ModelError
+    from itasc_bringup.apps import load_composition
+    try:
+        model = load_composition(app)
+    except ModelError as err:
+        print(f'error: {err}', file=sys.stderr)
+        raise SystemExit(2) from None
+    if rate is not None:
+        model = model.model_copy(update={'rate': rate})
+    return model
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    model = load(args.app, args.rate)
+
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from itasc_core.communication.events import EventListener, EventRaiser
+    from itasc_core.composition.composer import bring_up
+    from itasc_core.composition.deployment import Runtime, make_executor
+    from itasc_core.composition.model import walk
+    from itasc_core.entity import CompositeContext
+
+    from .status import StatusDisplay
+
+    stop_requested: list[str] = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _frame: stop_requested.append(signal.Signals(signum).name))
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    executor = make_executor()
+    runtime = Runtime(executor=executor, mode=args.deploy)
+    root = CompositeContext(name=model.name, namespace=f'/{model.name}')
+    node = rclpy.create_node('bootstrap', namespace=root.namespace)
+    executor.add_node(node)
+    recorder = None
+    composer = None
+    try:
+        if args.record:
+            from .recording.recorder import Recorder
+            recorder = Recorder(path=args.record, prefix=root.namespace)
+            executor.add_node(recorder)
+        raiser = EventRaiser(node, topic=root.events_topic)
+        composer = bring_up(model=model, context=root, runtime=runtime)
+        coordinator = composer.coordinator
+        composites = {m.name: path for path, m in walk(model)}
+        StatusDisplay(node, composites=composites,
+                      rate=lambda: composer.timer.achieved_rate() if composer.timer else 0.0)
+        failures: list[str] = []
+        EventListener(node, topics=[root.events_topic], immediate=True,
+                      accept=lambda name: name.endswith('_failed') or name.endswith('_refused'),
+                      on_priority=lambda msg: failures.append(f'{msg.name}: {msg.detail}'))
+
+        while raiser.publisher.get_subscription_count() < 3 and not stop_requested:
+            executor.spin_once(timeout_sec=0.01)  # coordinator, composer, configurator listen
+        raiser.raise_event(f'e_{root.name}_configure')
+
+        running_since = None
+        stop_sent_at = None
+        while True:
+            executor.spin_once(timeout_sec=0.02)
+            runtime.reap()
+            state = coordinator.state
+            if running_since is None and state.startswith('Active.Run.Running'):
+                running_since = time.monotonic()
+            due = args.duration is not None and running_since is not None \
+                and time.monotonic() - running_since >= args.duration
+            if stop_sent_at is None and (stop_requested or due):
+                raiser.raise_event(f'e_{root.name}_stop')
+                stop_sent_at = time.monotonic()
+            if state.endswith('NotifyStopped'):
+                break
+            if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
+                print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
+                return 1
+        for failure in failures:
+            print(f'warning: {failure}', file=sys.stderr)
+        print(f'{root.name}: stopped ({"signal " + stop_requested[0] if stop_requested else "duration"})')
+        return 0
+    finally:
+        runtime.reap()
+        if composer is not None:
+            for entity in (composer.coordinator, composer.configurator, composer):
+                executor.remove_node(entity)
+                entity.destroy_node()
+        runtime.shutdown()
+        if recorder is not None:
+            recorder.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

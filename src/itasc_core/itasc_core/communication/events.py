@@ -1,0 +1,120 @@
+"""Event communication (paper §6.2, §7.2): raising events with per-source sequence numbers, and
+receiving them without loss into a buffer that the receiver drains at its next update.
+
+Two classes of events: *common* events are buffered and processed at the receiver's next update;
+*priority* events (timer and scheduler triggers, ``e_emergency``) are handed over on arrival.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Callable, Iterable
+
+from rclpy.node import Node
+
+from itasc_msgs.msg import Event
+
+from .qos import EVENT_QOS
+
+__all__ = ['Event', 'EventRaiser', 'EventListener', 'events_topic', 'PRIORITY_EVENTS']
+
+#: Events that are always priority events, whoever raises them.
+PRIORITY_EVENTS = frozenset({'e_emergency'})
+
+
+def events_topic(namespace: str) -> str:
+    return f'{namespace.rstrip("/")}/events'
+
+
+class EventRaiser:
+    """Publishes events of one source on one composite's event topic."""
+
+    def __init__(self, node: Node, *, topic: str, source: str | None = None) -> None:
+        self._node = node
+        self._source = source or node.get_fully_qualified_name()
+        self._publisher = node.create_publisher(Event, topic, EVENT_QOS)
+        self._seq = 0
+        self.topic = topic
+
+    @property
+    def publisher(self):
+        return self._publisher
+
+    def raise_event(self, name: str, *, priority: bool = False, detail: str = '') -> Event:
+        self._seq += 1
+        msg = Event()
+        msg.stamp = self._node.get_clock().now().to_msg()
+        msg.source = self._source
+        msg.name = name
+        msg.seq = self._seq
+        msg.priority = priority or name in PRIORITY_EVENTS
+        msg.detail = detail
+        self._publisher.publish(msg)
+        return msg
+
+    def destroy(self) -> None:
+        self._node.destroy_publisher(self._publisher)
+
+
+class EventListener:
+    """Subscribes to one or more event topics; buffers common events, passes priority ones on.
+
+    With ``immediate``, every accepted event is handed to ``on_priority`` on arrival (for
+    entities that are time-triggered themselves, such as a Scheduler waiting to be initialised).
+    Sequence numbers are checked per source: a gap is counted in :attr:`lost` and reported through
+    ``on_gap`` (it cannot happen with the reliable, keep-all QoS unless a publisher was destroyed
+    with events still in flight).
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        *,
+        topics: Iterable[str],
+        on_priority: Callable[[Event], None] | None = None,
+        accept: Callable[[str], bool] | None = None,
+        on_gap: Callable[[str, int, int], None] | None = None,
+        immediate: bool = False,
+    ) -> None:
+        self._buffer: deque[Event] = deque()
+        self._last_seq: dict[tuple[str, str], int] = {}
+        self._on_priority = on_priority
+        self._accept = accept
+        self._on_gap = on_gap
+        self._immediate = immediate
+        self.lost = 0
+        self._subscriptions = [
+            node.create_subscription(
+                Event, topic, lambda msg, topic=topic: self._receive(msg, topic), EVENT_QOS)
+            for topic in topics
+        ]
+
+    @property
+    def subscriptions(self):
+        return list(self._subscriptions)
+
+    def _receive(self, msg: Event, topic: str) -> None:
+        key = (msg.source, topic)
+        last = self._last_seq.get(key)
+        # seq 1 starts a new incarnation of a source (an entity re-created by its Composer); a
+        # source first heard of mid-stream raised its earlier events before we existed.
+        if last is not None and msg.seq != 1 and msg.seq != last + 1:
+            self.lost += max(0, msg.seq - last - 1)
+            if self._on_gap is not None:
+                self._on_gap(msg.source, last, msg.seq)
+        self._last_seq[key] = msg.seq
+        if self._accept is not None and not self._accept(msg.name):
+            return
+        if (msg.priority or self._immediate) and self._on_priority is not None:
+            self._on_priority(msg)
+        else:
+            self._buffer.append(msg)
+
+    def drain(self) -> list[Event]:
+        """Take every buffered event, oldest first (paper §7.2: empty the buffer on each read)."""
+        events = list(self._buffer)
+        self._buffer.clear()
+        return events
+
+    def __len__(self) -> int:
+        return len(self._buffer)

@@ -1,0 +1,333 @@
+"""The Composer (paper §3.1, §6.1): creates and connects the entities of its composite, and
+re-composes it at run time.
+
+Coordinator–Composer pattern: the Composer holds composition steps with IDs and executes one when
+the Coordinator raises the matching event, answering with a status event:
+
+====================================  =============================================================
+``e_<c>_deploy``                      create Scheduler, Functional Entities, Monitors, (root) Timer,
+                                      and every child composite's Coordinator, Configurator and
+                                      Composer → ``e_<c>_deployed`` / ``e_<c>_deploy_failed``
+``e_<c>_connect``                     check every connection's port metadata, connect the data
+                                      flow → ``e_<c>_connected`` / ``e_<c>_connect_failed``
+``e_<c>_cleanup_computation``         destroy Functional Entities incl. child composites
+                                      → ``e_<c>_computation_cleaned``
+``e_<c>_cleanup``                     destroy the other entities → ``e_<c>_cleaned``
+``e_<c>_compose_<step>``              a composition step of the model, e.g. add a Task while the
+                                      composite runs → ``e_<c>_composed`` (detail: new children)
+====================================  =============================================================
+
+A refused connection raises ``e_<c>_connection_refused`` naming both ports.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+from ..communication.events import EventListener, EventRaiser, events_topic
+from ..communication.ports import SemanticMismatch, check_connection
+from ..computation.functional_entity import FunctionalEntity
+from ..computation.monitor import Monitor
+from ..configuration.configurator import Configurator
+from ..coordination.coordinator import Coordinator
+from ..coordination.lifecycle import RunningFsmSpec, RunningState, RunningTransition
+from ..coordination.scheduler import Scheduler
+from ..coordination.timer import Timer
+from ..entity import CompositeContext, Entity
+from .deployment import Runtime
+from .model import CompositeModel, ConnectionModel, EntityModel, MonitorModel
+from .registry import resolve_kind
+from .resolve import PortNotFound, port_of
+
+__all__ = ['Composer', 'bring_up', 'running_spec']
+
+
+def running_spec(model: CompositeModel) -> RunningFsmSpec | None:
+    """The Running sub-FSM of the model in the form the life-cycle FSM takes."""
+    if model.running is None:
+        return None
+    return RunningFsmSpec(
+        initial=model.running.initial,
+        states=tuple(RunningState(name, tuple(s.raise_)) for name, s in model.running.states.items()),
+        transitions=tuple(RunningTransition(t.source, t.target, tuple(t.when)) for t in model.running.transitions),
+    )
+
+
+def bring_up(*, model: CompositeModel, context: CompositeContext, runtime: Runtime,
+             remote_trigger: bool = False) -> 'Composer':
+    """Create a composite's Coordinator, Composer and Configurator (paper §6.1: what a bootstrap
+    does for the root and a parent's Composer does for a child)."""
+    composer = Composer(model=model, context=context, runtime=runtime, remote_trigger=remote_trigger)
+    coordinator = Coordinator(
+        composite=context,
+        children=[child.name for child in model.children],
+        running=running_spec(model),
+        safety_to_parent=model.safety.raise_to_parent,
+    )
+    configurator = Configurator(
+        composite=context,
+        configurations=model.configurations,
+        initial=model.configure,
+        entities=composer.entity,
+    )
+    composer.coordinator, composer.configurator = coordinator, configurator
+    runtime.add(composer, coordinator, configurator)
+    return composer
+
+
+class Composer(Entity):
+    """Structure of one composite, for its whole life."""
+
+    def __init__(self, *, model: CompositeModel, context: CompositeContext, runtime: Runtime,
+                 remote_trigger: bool = False) -> None:
+        super().__init__('composer', composite=context)
+        self.model = model
+        self.runtime = runtime
+        self._remote_trigger = remote_trigger
+        self.coordinator: Coordinator | None = None
+        self.configurator: Configurator | None = None
+        self.scheduler: Scheduler | None = None
+        self.timer: Timer | None = None
+        self.entities: dict[str, FunctionalEntity] = {}
+        self.monitors: dict[str, Monitor] = {}
+        self.children: dict[str, Composer | None] = {}  # None: hosted in another process
+        self._pending: list[ConnectionModel] = []
+        self._child_raisers: dict[str, EventRaiser] = {}
+        c = context.name
+        self._steps = {
+            f'e_{c}_deploy': self.deploy,
+            f'e_{c}_connect': self.connect,
+            f'e_{c}_cleanup_computation': self.cleanup_computation,
+            f'e_{c}_cleanup': self.cleanup,
+        }
+        for step in model.composition_steps:
+            self._steps[f'e_{c}_compose_{step}'] = lambda step=step: self.compose(step)
+        self._events = EventListener(self, topics=[context.events_topic], on_priority=self._on_event,
+                                     accept=self._accepts, immediate=True)
+
+    # -- events -------------------------------------------------------------------------------------
+
+    def _accepts(self, name: str) -> bool:
+        return name in self._steps or (bool(self._pending) and name.endswith('_configured')) \
+            or name.startswith(f'e_{self.composite.name}_bind')
+
+    def _on_event(self, msg) -> None:
+        if msg.name == f'e_{self.composite.name}_bind':
+            port, _, topic = msg.detail.partition('|')
+            self.bind_export(port, topic)
+            return
+        step = self._steps.get(msg.name)
+        if step is not None:
+            step()
+        elif self._pending:
+            self._connect_pending(msg.name)
+
+    def entity(self, name: str):
+        """A deployed entity of this composite by name (for the Configurator)."""
+        return self.entities.get(name) or self.monitors.get(name)
+
+    def tick(self, t: float) -> None:
+        """Trigger this composite's Scheduler (called by the parent's Scheduler, same process)."""
+        if self.scheduler is not None:
+            self.scheduler.tick(t)
+
+    # -- DeployEntities ---------------------------------------------------------------------------------
+
+    def deploy(self) -> None:
+        c = self.composite.name
+        try:
+            if self.scheduler is None:  # deploying again after Safety keeps what exists
+                self.scheduler = Scheduler(composite=self.composite, remote_trigger=self._remote_trigger)
+                self.runtime.add(self.scheduler)
+                for entity in self.model.entities:
+                    self._deploy_entity(entity)
+                for monitor in self.model.monitors:
+                    self._deploy_monitor(monitor)
+                if self.composite.parent_namespace is None and self.model.rate:
+                    self.timer = Timer(composite=self.composite, scheduler=self.scheduler, rate=self.model.rate)
+                    self.runtime.add(self.timer)
+        except Exception as err:  # noqa: BLE001 - reported to the Coordinator, which goes to Safety
+            self.get_logger().error(traceback.format_exc())
+            self.raise_event(f'e_{c}_deploy_failed', detail=f'{type(err).__name__}: {err}')
+            return
+        self._await_remote_children()
+
+    def _await_remote_children(self, *, timeout: float = 30.0) -> None:
+        """Report deployed once every child process's Coordinator listens to and talks on our
+        event topic, so that no command to it can be lost to DDS discovery."""
+        remote = [self.composite.child(name).namespace for name, c in self.children.items() if c is None]
+        c = self.composite.name
+        if not remote:
+            self.raise_event(f'e_{c}_deployed')
+            return
+        deadline = self.get_clock().now().nanoseconds + int(timeout * 1e9)
+        topic = self.composite.events_topic
+
+        def ready(infos, namespace: str) -> bool:
+            return any(i.node_name == 'coordinator' and i.node_namespace == namespace for i in infos)
+
+        def poll() -> None:
+            subscribers = self.get_subscriptions_info_by_topic(topic)
+            publishers = self.get_publishers_info_by_topic(topic)
+            if all(ready(subscribers, ns) and ready(publishers, ns) for ns in remote):
+                self.destroy_timer(timer)
+                self.raise_event(f'e_{c}_deployed')
+            elif self.get_clock().now().nanoseconds > deadline:
+                self.destroy_timer(timer)
+                self.raise_event(f'e_{c}_deploy_failed', detail=f'composite processes did not come up: {remote}')
+        timer = self.create_timer(0.02, poll)
+
+    def _deploy_entity(self, entity: EntityModel | CompositeModel, *, index: int | None = None) -> None:
+        scheduled = entity.name in self.model.schedule_order()
+        if isinstance(entity, CompositeModel):
+            context = self.composite.child(entity.name)
+            if self.runtime.mode == 'per-composite':
+                self.runtime.spawn(model=entity, namespace=context.namespace,
+                                   parent_namespace=self.composite.namespace)
+                self.children[entity.name] = None
+                if scheduled:
+                    self.scheduler.add_remote_child(entity.name, context.namespace)
+            else:
+                child = bring_up(model=entity, context=context, runtime=self.runtime)
+                self.children[entity.name] = child
+                if scheduled:
+                    self.scheduler.add_child(entity.name, child)
+            return
+        cls = resolve_kind(entity.kind)
+        node = cls(entity.name, composite=self.composite, parameters=entity.parameters)
+        self.entities[entity.name] = node
+        self.runtime.add(node)
+        if scheduled:
+            self.scheduler.add_entity(node, index=index)
+
+    def _deploy_monitor(self, monitor: MonitorModel) -> None:
+        watched, _ = port_of(self.model, self.composite.namespace, monitor.watch)
+        low, high = monitor.band or (float('-inf'), float('inf'))
+        parameters = {
+            'field': monitor.field, 'condition': monitor.condition, 'threshold': monitor.threshold,
+            'low': low, 'high': high, 'timeout': monitor.timeout, 'event': monitor.event,
+            'enabled': monitor.enabled, 'enable_on': monitor.enable_on or [''],
+            'disable_on': monitor.disable_on or [''],
+        }
+        node = Monitor(monitor.name, composite=self.composite, parameters=parameters, watch=watched)
+        self.monitors[monitor.name] = node
+        self.runtime.add(node)
+        self.scheduler.add_monitor(node)
+
+    # -- ConnectEntities ----------------------------------------------------------------------------------
+
+    def connect(self) -> None:
+        c = self.composite.name
+        refused = [problem for problem in map(self._connect_one, self.model.connections) if problem]
+        for monitor in self.model.monitors:
+            source, _ = port_of(self.model, self.composite.namespace, monitor.watch)
+            self.monitors[monitor.name].watch.connect(source.id)
+        if refused:
+            self.raise_event(f'e_{c}_connect_failed', detail='; '.join(refused))
+        else:
+            self.raise_event(f'e_{c}_connected')
+
+    def _connect_one(self, connection: ConnectionModel) -> str | None:
+        """Connect one data flow; return why it was refused, or None."""
+        ns = self.composite.namespace
+        try:
+            source, source_name = port_of(self.model, ns, connection.source)
+            target, target_name = port_of(self.model, ns, connection.target)
+            check_connection(source, target, source_name=source_name, target_name=target_name)
+        except (SemanticMismatch, PortNotFound) as err:
+            self.get_logger().error(str(err))
+            self.raise_event(f'e_{self.composite.name}_connection_refused', detail=str(err))
+            return str(err)
+        entity_name, _, port = connection.target.partition('.')
+        if entity_name in self.entities:
+            self.entities[entity_name].inputs[port].connect(source.id)
+        else:
+            self._bind_child(entity_name, port, source.id)
+        return None
+
+    def _bind_child(self, child: str, port: str, topic: str) -> None:
+        """Feed a port a child composite exports (the child's Composer connects its inside)."""
+        composer = self.children.get(child)
+        if composer is not None:
+            composer.bind_export(port, topic)
+        else:
+            # The child lives in another process: ask its Composer on the child's event topic.
+            namespace = f'{self.composite.namespace}/{child}'
+            raiser = self._child_raisers.get(namespace)
+            if raiser is None:
+                raiser = self._child_raisers[namespace] = EventRaiser(self, topic=events_topic(namespace))
+            raiser.raise_event(f'e_{child}_bind', detail=f'{port}|{topic}')
+
+    def bind_export(self, port: str, topic: str) -> None:
+        """Connect the inside of exported input ``port`` to ``topic``."""
+        inner = self.model.exports[port]
+        entity_name, _, inner_port = inner.partition('.')
+        if entity_name in self.entities:
+            self.entities[entity_name].inputs[inner_port].connect(topic)
+        else:
+            self._bind_child(entity_name, inner_port, topic)
+
+    # -- run-time re-composition ------------------------------------------------------------------------
+
+    def compose(self, step: str) -> None:
+        """Execute composition step ``step``: add entities and child composites to the running
+        composite; their connections are made once each new child reports configured."""
+        spec = self.model.composition_steps[step]
+        added = [e for e in spec.add if e.name not in self.entities and e.name not in self.children]
+        self.model = self.model.model_copy(update={
+            'entities': [*self.model.entities, *added],
+            'connections': [*self.model.connections, *spec.connections],
+        })
+        try:
+            for entity in added:
+                self._deploy_entity(entity)
+        except Exception as err:  # noqa: BLE001
+            self.raise_event(f'e_{self.composite.name}_compose_failed', detail=f'{type(err).__name__}: {err}')
+            return
+        new_children = [e.name for e in added if isinstance(e, CompositeModel)]
+        leaves = {e.name for e in added if isinstance(e, EntityModel)}
+        for connection in spec.connections:
+            ends = {connection.source.split('.')[0], connection.target.split('.')[0]}
+            if ends & set(new_children):
+                self._pending.append(connection)
+            else:
+                self._connect_one(connection)
+        for name in leaves:
+            self.entities[name].start()
+        self.raise_event(f'e_{self.composite.name}_composed', detail=','.join(new_children))
+
+    def _connect_pending(self, event: str) -> None:
+        ready = {child for child in self.children if event == f'e_{child}_configured'}
+        if not ready:
+            return
+        remaining = []
+        for connection in self._pending:
+            ends = {connection.source.split('.')[0], connection.target.split('.')[0]}
+            if ends & ready:
+                self._connect_one(connection)
+            else:
+                remaining.append(connection)
+        self._pending = remaining
+
+    # -- Stopped ----------------------------------------------------------------------------------------
+
+    def cleanup_computation(self) -> None:
+        """Destroy the Functional Entities, child composites included (CleanupComputation)."""
+        retired: list = list(self.entities.values())
+        for name, child in self.children.items():
+            if child is None:
+                self.runtime.join(f'{self.composite.namespace}/{name}')
+            else:
+                retired += [child.coordinator, child.configurator, child]
+        self.entities.clear()
+        self.children.clear()
+        self.runtime.retire(retired)
+        self.raise_event(f'e_{self.composite.name}_computation_cleaned')
+
+    def cleanup(self) -> None:
+        """Destroy the other entities of the composite (Cleanup)."""
+        retired = [*self.monitors.values(), self.scheduler, self.timer]
+        self.monitors.clear()
+        self.scheduler = self.timer = None
+        self.runtime.retire(node for node in retired if node is not None)
+        self.raise_event(f'e_{self.composite.name}_cleaned')

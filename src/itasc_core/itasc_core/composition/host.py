@@ -1,0 +1,64 @@
+"""A process hosting one composite (``--deploy per-composite``, paper §4.4 and §6.1).
+
+Started by the parent's Composer; does for its composite what the bootstrap does for the root:
+brings up its Coordinator, Composer and Configurator, then lets the life-cycle run. Its Scheduler
+is triggered over the composite's trigger topic. The process ends after its Coordinator notified
+the parent that it stopped (or on SIGTERM/SIGINT).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import time
+
+import rclpy
+from rclpy.signals import SignalHandlerOptions
+
+from ..entity import CompositeContext
+from .composer import bring_up
+from .deployment import Runtime, make_executor
+from .model import CompositeModel
+
+#: Time to let the last events (e_<c>_stopped) reach the parent before the process exits.
+LINGER = 0.5
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument('--spec', required=True)
+    parser.add_argument('--namespace', required=True)
+    parser.add_argument('--parent-namespace', required=True)
+    args = parser.parse_args(argv)
+    with open(args.spec) as spec:
+        model = CompositeModel.model_validate(json.load(spec))
+    context = CompositeContext(name=model.name, namespace=args.namespace, parent_namespace=args.parent_namespace)
+
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+    signal.signal(signal.SIGINT, lambda *_: stop.append(True))
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    executor = make_executor()
+    runtime = Runtime(executor=executor, mode='per-composite')
+    composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
+    try:
+        stopped_at = None
+        while not stop:
+            executor.spin_once(timeout_sec=0.05)
+            runtime.reap()
+            if stopped_at is None and composer.coordinator.state.endswith('NotifyStopped'):
+                stopped_at = time.monotonic()
+            if stopped_at is not None and time.monotonic() - stopped_at > LINGER:
+                break
+    finally:
+        runtime.shutdown()
+        for node in (composer.coordinator, composer.configurator, composer):
+            executor.remove_node(node)
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,203 @@
+"""The composition model: a tree of composites (paper §3, Fig. 1), validated with pydantic.
+
+This is the generic model of the Composition Pattern that the runtime executes. An application
+model in a domain language (the iTaSC DSL of ``itasc_bringup``) is transformed into it, and a
+model of the pattern itself can be written in it directly (``config/apps/pattern_demo.yaml``).
+
+A composite lists its Functional Entities (any of which may be a composite, to any depth), the
+connections between their ports, the ports it exports to its parent, its named configurations
+(Configurator), its monitors, its composition steps (Composer), its Running sub-FSM and what it
+raises to its parent when it enters Safety (Coordinator).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
+
+__all__ = [
+    'EntityModel',
+    'CompositeModel',
+    'ConnectionModel',
+    'MonitorModel',
+    'RunningModel',
+    'RunningStateModel',
+    'RunningTransitionModel',
+    'CompositionStepModel',
+    'SafetyModel',
+    'walk',
+]
+
+_NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra='forbid', frozen=True)
+
+
+class EntityModel(_Strict):
+    """A (leaf) Functional Entity: a kind from the registry and its ROS parameters."""
+
+    name: str = Field(pattern=_NAME)
+    kind: str = Field(min_length=1)
+    parameters: dict[str, Any] = Field(default_factory=dict)
+
+
+class ConnectionModel(_Strict):
+    """Data flow from an output port to an input port, both written ``entity.port``."""
+
+    source: str = Field(alias='from', pattern=r'^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$')
+    target: str = Field(alias='to', pattern=r'^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$')
+
+
+class MonitorModel(_Strict):
+    """A Monitor (paper §4.1): a condition over a data-flow port that raises a named event."""
+
+    name: str = Field(pattern=_NAME)
+    watch: str = Field(pattern=r'^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$')
+    field: str = ''
+    condition: Literal['above', 'below', 'outside', 'stale', 'nonfinite']
+    threshold: float = 0.0
+    band: tuple[float, float] | None = None
+    timeout: float = Field(default=0.5, gt=0)
+    event: str = Field(pattern=r'^e_[A-Za-z0-9_]+$')
+    enabled: bool = True
+    enable_on: list[str] = Field(default_factory=list)
+    disable_on: list[str] = Field(default_factory=list)
+
+    @model_validator(mode='after')
+    def _band_given(self) -> 'MonitorModel':
+        if self.condition == 'outside' and self.band is None:
+            raise ValueError("condition 'outside' needs band: [low, high]")
+        return self
+
+
+class RunningStateModel(_Strict):
+    raise_: list[str] = Field(default_factory=list, alias='raise')
+
+
+class RunningTransitionModel(_Strict):
+    source: str = Field(alias='from')
+    target: str = Field(alias='to')
+    when: list[str] = Field(min_length=1)
+
+    @field_validator('when', mode='before')
+    @classmethod
+    def _one_or_many(cls, value: Any) -> Any:
+        return [value] if isinstance(value, str) else value
+
+
+class RunningModel(_Strict):
+    """The application-specific Running sub-FSM (paper §6.2): data, not code."""
+
+    initial: str
+    states: dict[str, RunningStateModel] = Field(min_length=1)
+    transitions: list[RunningTransitionModel] = Field(default_factory=list)
+
+    @model_validator(mode='after')
+    def _known_states(self) -> 'RunningModel':
+        if self.initial not in self.states:
+            raise ValueError(f"initial state '{self.initial}' is not one of {sorted(self.states)}")
+        for t in self.transitions:
+            for end in (t.source, t.target):
+                if end not in self.states:
+                    raise ValueError(f"transition names unknown state '{end}'; known: {sorted(self.states)}")
+        return self
+
+
+class SafetyModel(_Strict):
+    """What a composite raises to its parent on entering Safety (the application decides)."""
+
+    raise_to_parent: list[str] = Field(default_factory=list)
+
+
+class CompositionStepModel(_Strict):
+    """A composition step of the Composer with an ID (Coordinator–Composer pattern, §3.1)."""
+
+    add: list['EntityOrComposite'] = Field(default_factory=list)
+    remove: list[str] = Field(default_factory=list)
+    connections: list[ConnectionModel] = Field(default_factory=list)
+
+
+class CompositeModel(_Strict):
+    """A Composite Functional Entity (paper Fig. 1)."""
+
+    name: str = Field(pattern=_NAME)
+    entities: list['EntityOrComposite'] = Field(default_factory=list)
+    schedule: list[str] | None = None
+    connections: list[ConnectionModel] = Field(default_factory=list)
+    exports: dict[str, str] = Field(default_factory=dict)
+    configurations: dict[str, dict[str, dict[str, Any]]] = Field(default_factory=dict)
+    configure: list[str] = Field(default_factory=list)
+    monitors: list[MonitorModel] = Field(default_factory=list)
+    running: RunningModel | None = None
+    safety: SafetyModel = Field(default_factory=SafetyModel)
+    composition_steps: dict[str, CompositionStepModel] = Field(default_factory=dict)
+    #: Root only: the rate of the Timer that triggers the root Scheduler.
+    rate: float | None = Field(default=None, gt=0)
+
+    @model_validator(mode='after')
+    def _consistent(self) -> 'CompositeModel':
+        names = [e.name for e in self.entities] + [m.name for m in self.monitors]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f'duplicate entity names {duplicates}')
+        entity_names = {e.name for e in self.entities}
+        for name in self.schedule or []:
+            if name not in entity_names:
+                raise ValueError(f"schedule names unknown entity '{name}'; known: {sorted(entity_names)}")
+        for c in self.connections:
+            for end in (c.source, c.target):
+                if end.split('.')[0] not in entity_names:
+                    raise ValueError(f"connection end '{end}' names no entity of '{self.name}'")
+        for config, targets in self.configurations.items():
+            for target in targets:
+                if target not in names:
+                    raise ValueError(f"configuration '{config}' names unknown entity '{target}'")
+        for config in self.configure:
+            if config not in self.configurations:
+                raise ValueError(f"configure names unknown configuration '{config}'; "
+                                 f'known: {sorted(self.configurations)}')
+        return self
+
+    @property
+    def children(self) -> list['CompositeModel']:
+        return [e for e in self.entities if isinstance(e, CompositeModel)]
+
+    @property
+    def leaves(self) -> list[EntityModel]:
+        return [e for e in self.entities if isinstance(e, EntityModel)]
+
+    def entity(self, name: str) -> 'EntityModel | CompositeModel':
+        for e in self.entities:
+            if e.name == name:
+                return e
+        raise KeyError(name)
+
+    def schedule_order(self) -> list[str]:
+        return list(self.schedule) if self.schedule is not None else [e.name for e in self.entities]
+
+
+def _entity_kind(value: Any) -> str:
+    if isinstance(value, dict):
+        return 'entity' if 'kind' in value else 'composite'
+    return 'composite' if isinstance(value, CompositeModel) else 'entity'
+
+
+#: Entities are written ``{name, kind, parameters}`` or, for a composite, ``{name, entities, ...}``.
+EntityOrComposite = Annotated[
+    Union[Annotated[EntityModel, Tag('entity')], Annotated[CompositeModel, Tag('composite')]],
+    Discriminator(_entity_kind),
+]
+
+CompositionStepModel.model_rebuild()
+CompositeModel.model_rebuild()
+
+
+def walk(root: CompositeModel, path: str = ''):
+    """Yield ``(path, composite)`` for every composite of the tree, parents first."""
+    here = f'{path}/{root.name}'
+    yield here, root
+    for child in root.children:
+        yield from walk(child, here)

@@ -1,0 +1,83 @@
+"""The Configurator (paper §5): holds named configurations and applies one when the Coordinator
+raises the event with its name (Coordinator–Configurator pattern), answering with a status event.
+
+A configuration is a set of ROS 2 parameter values per entity of this composite, e.g.
+``high_accuracy_control: {CC: {kp: 8.0}}`` applied on ``e_high_accuracy_control`` and answered by
+``e_high_accuracy_control_applied`` (or ``..._failed``). On ``e_<composite>_configure_entities``
+it applies the composite's initial configurations and answers ``e_<composite>_entities_configured``.
+The Configurator itself is configured by whoever creates it (the parent's Composer, or the
+bootstrap for the root, §5.1): it is handed its configurations at construction.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..communication.events import EventListener
+from ..computation.functional_entity import coerce
+from ..entity import CompositeContext, Entity
+
+__all__ = ['Configurator']
+
+Configuration = dict[str, dict[str, Any]]
+
+
+class Configurator(Entity):
+    """Applies named configurations to the entities of its composite."""
+
+    def __init__(
+        self,
+        *,
+        composite: CompositeContext,
+        configurations: dict[str, Configuration],
+        initial: list[str],
+        entities: Callable[[str], Node | None],
+    ) -> None:
+        super().__init__('configurator', composite=composite)
+        self.configurations = dict(configurations)
+        self.initial = list(initial)
+        self._entities = entities
+        self.applied: list[str] = []
+        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._on_event,
+                                     accept=self._accepts, immediate=True)
+
+    def _accepts(self, name: str) -> bool:
+        return name == self._configure_event or name.removeprefix('e_') in self.configurations
+
+    @property
+    def _configure_event(self) -> str:
+        return f'e_{self.composite.name}_configure_entities'
+
+    def _on_event(self, msg) -> None:
+        c = self.composite.name
+        if msg.name == self._configure_event:
+            failure = next(filter(None, (self.apply(name) for name in self.initial)), None)
+            if failure:
+                self.raise_event(f'e_{c}_configure_failed', detail=failure)
+            else:
+                self.raise_event(f'e_{c}_entities_configured')
+            return
+        name = msg.name.removeprefix('e_')
+        failure = self.apply(name)
+        self.raise_event(f'e_{name}_failed' if failure else f'e_{name}_applied', detail=failure or '')
+
+    def apply(self, name: str) -> str | None:
+        """Apply configuration ``name``; return why it failed, or None."""
+        for entity_name, values in self.configurations[name].items():
+            entity = self._entities(entity_name)
+            if entity is None:
+                return f"configuration '{name}': entity '{entity_name}' is not deployed"
+            declared = {k: entity.get_parameter(k).value for k in values if entity.has_parameter(k)}
+            missing = sorted(set(values) - set(declared))
+            if missing:
+                return f"configuration '{name}': {entity_name} has no parameters {missing}"
+            parameters = [Parameter(k, value=coerce(declared[k], v)) for k, v in values.items()]
+            for result in entity.set_parameters(parameters):
+                if not result.successful:
+                    return f"configuration '{name}' on {entity_name}: {result.reason}"
+        self.applied.append(name)
+        self.get_logger().debug(f'applied configuration {name}')
+        return None

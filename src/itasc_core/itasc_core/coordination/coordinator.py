@@ -1,0 +1,112 @@
+"""The Coordinator (paper §6): the discrete behaviour of one composite, as a ROS 2 node.
+
+A pure event processor: it feeds the events of its composite's event topic (and its parent's
+commands) into the life-cycle FSM of :mod:`.lifecycle` and publishes the events that FSM raises.
+Common events are buffered and processed at the Coordinator's next update (a periodic timer);
+priority events (``e_emergency``) are processed on arrival (§6.2). It publishes its fully
+qualified state on ``<composite namespace>/state`` on every change.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+from itasc_msgs.msg import CoordinatorState
+
+from ..communication.events import EventListener, EventRaiser
+from ..communication.qos import STATE_QOS
+from ..entity import CompositeContext, Entity
+from .lifecycle import SAFETY_EVENT, LifecycleFsm, RunningFsmSpec
+
+__all__ = ['Coordinator']
+
+
+class Coordinator(Entity):
+    """Runs the life-cycle FSM of a composite on its events."""
+
+    def __init__(
+        self,
+        *,
+        composite: CompositeContext,
+        children: Iterable[str] = (),
+        running: RunningFsmSpec | None = None,
+        safety_to_parent: Iterable[str] = (),
+        update_rate: float = 200.0,
+    ) -> None:
+        super().__init__('coordinator', composite=composite)
+        self.is_root = composite.parent_namespace is None
+        self._to_parent = self._raiser if self.is_root else EventRaiser(self, topic=composite.parent_events_topic)
+        self._state_publisher = self.create_publisher(CoordinatorState, composite.state_topic, STATE_QOS)
+        #: Every state entered, in order, with the event that caused it.
+        self.history: list[tuple[str, str]] = []
+        self.fsm = LifecycleFsm(
+            composite=composite.name,
+            children=children,
+            is_root=self.is_root,
+            raise_event=self._raise,
+            on_state=self._publish_state,
+            running=running,
+            safety_to_parent=safety_to_parent,
+        )
+        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._process,
+                                     accept=self._accepts, on_gap=self._gap)
+        self._parent_events = None if self.is_root else EventListener(
+            self, topics=[composite.parent_events_topic], on_priority=self._process_parent,
+            accept=self._accepts_parent, on_gap=self._gap)
+        self._notifications = {f'e_{composite.name}_{n}' for n in ('configured', 'started', 'running', 'stopped')}
+        self._update_timer = self.create_timer(1.0 / update_rate, self.update)
+
+    @property
+    def state(self) -> str:
+        return self.fsm.state
+
+    def _accepts(self, name: str) -> bool:
+        return self.fsm.is_relevant(name) or name == f'e_{self.composite.name}_composed'
+
+    def _accepts_parent(self, name: str) -> bool:
+        return name.startswith(f'e_{self.composite.name}_') or name == SAFETY_EVENT
+
+    def _process_parent(self, msg) -> None:
+        """Commands from the parent: life-cycle commands go to the FSM; any other
+        ``e_<composite>_<x>`` is passed into this composite as ``e_<x>`` (e.g. the parent selects
+        ``e_<Task>_high_accuracy_control``, the Task's Configurator reacts to
+        ``e_high_accuracy_control``)."""
+        if msg.source == self.get_fully_qualified_name() or msg.name == SAFETY_EVENT:
+            return  # our own notifications; the parent's emergency is the parent's business
+        if self.fsm.is_relevant(msg.name):
+            self._process(msg)
+        elif msg.name not in self._notifications:
+            self._raiser.raise_event('e_' + msg.name.removeprefix(f'e_{self.composite.name}_'))
+
+    def _gap(self, source: str, last: int, seq: int) -> None:
+        self.get_logger().error(f'lost events from {source}: after #{last} came #{seq}')
+
+    def update(self) -> None:
+        """Drain the event buffers: all common events that arrived since the last update."""
+        for msg in self._events.drain():
+            self._process(msg)
+        if self._parent_events is not None:
+            for msg in self._parent_events.drain():
+                self._process_parent(msg)
+
+    def _process(self, msg) -> None:
+        if msg.name == f'e_{self.composite.name}_composed':
+            for child in filter(None, msg.detail.split(',')):
+                self.fsm.adopt(child)
+            return
+        self.fsm.process(msg.name)
+
+    def _raise(self, name: str, to_parent: bool) -> None:
+        raiser = self._to_parent if to_parent else self._raiser
+        raiser.raise_event(name, priority=name == SAFETY_EVENT)
+
+    def _publish_state(self, state: str, previous: str, event: str) -> None:
+        self.history.append((state, event))
+        msg = CoordinatorState()
+        msg.stamp = self.get_clock().now().to_msg()
+        msg.composite = self.composite.name
+        msg.state = state
+        msg.previous_state = previous if previous != 'Init' else ''
+        msg.event = event
+        self._state_publisher.publish(msg)
+        self.get_logger().debug(f'{state} <- {event}')

@@ -1,0 +1,346 @@
+"""The life-cycle FSM of a Composite Functional Entity (paper §6.1, Figs. 4, 5 and 6).
+
+A plain-Python, *pure* event processor: it consumes event names and raises event names through a
+callback; it never calls platform code. The ROS wrapper is :mod:`itasc_core.coordination.coordinator`.
+
+States carry the paper's names, fully qualified with dots::
+
+    Active.Configure.Configuring.{DeployEntities, ConfigureEntities}
+    Active.Configure.Configured.{ConnectEntities, NotifyConfigured}
+    Active.Start.{Starting, Started}
+    Active.Run.{PreRunning, Running[.<application sub-FSM>]}
+    Active.Stop.Stopping, Active.Stop.Stopped.{Disengage, CleanupComputation, Cleanup, NotifyStopped}
+    Safety
+
+Every transition waits for a *set* of events (∀ in Fig. 5). Event memory (the rFSM extension)
+records the events that arrived since the current state was entered and is cleared on every state
+entry, so a transition fires as soon as all of its events are in memory, in whatever order and at
+whatever moment they arrived.
+
+We build the statechart with ``transitions``' HierarchicalMachine rather than by hand: it is a
+well-kept, dictionary-driven statechart library, which is what the Running sub-FSM needs (it is
+data from the application model, not code), and it gives entry callbacks and nested states with
+parent-level transitions (Active → Safety from any sub-state). python-statemachine 3 declares
+charts as classes, which fits data-driven charts less well.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Iterable
+
+from transitions.extensions.nesting import HierarchicalMachine, NestedState
+
+__all__ = [
+    'LifecycleFsm',
+    'RunningFsmSpec',
+    'RunningState',
+    'RunningTransition',
+    'Raise',
+    'SAFETY_EVENT',
+]
+
+SAFETY_EVENT = 'e_emergency'
+
+#: ``raise_event(name, to_parent)``: ``to_parent`` sends the event to the parent composite's event
+#: topic (notifications such as ``e_<c>_configured``); otherwise to this composite's own topic.
+Raise = Callable[[str, bool], None]
+
+
+class _DottedState(NestedState):
+    separator = '.'
+
+
+class _Machine(HierarchicalMachine):
+    state_cls = _DottedState
+
+
+@dataclass(frozen=True)
+class RunningState:
+    """A state of the application-specific Running sub-FSM and the events it raises on entry."""
+
+    name: str
+    raise_on_entry: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class RunningTransition:
+    source: str
+    target: str
+    #: All of these events must have arrived since ``source`` was entered.
+    events: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class RunningFsmSpec:
+    """The Running sub-FSM plugged in from the application model (paper §6.2)."""
+
+    initial: str
+    states: tuple[RunningState, ...]
+    transitions: tuple[RunningTransition, ...] = ()
+
+
+@dataclass
+class _Transition:
+    source: str
+    target: str
+    requires: frozenset[str]
+
+
+@dataclass
+class _Memory:
+    events: set[str] = field(default_factory=set)
+
+
+class LifecycleFsm:
+    """The life-cycle FSM of one composite.
+
+    :param composite: name of the composite (appears in event names, e.g. ``e_<composite>_start``).
+    :param children: names of the child composites whose Coordinators this one coordinates.
+    :param is_root: the root Coordinator moves from an ``-ed`` to the next ``-ing`` state on its own.
+    :param raise_event: called for every event this Coordinator raises.
+    :param on_state: called with ``(new_state, previous_state, event)`` after every state change.
+    :param running: the application-specific Running sub-FSM, if any.
+    :param safety_to_parent: events raised to the parent when this composite enters Safety
+        (the application decides what propagates).
+    """
+
+    def __init__(
+        self,
+        *,
+        composite: str,
+        children: Iterable[str] = (),
+        is_root: bool = False,
+        raise_event: Raise,
+        on_state: Callable[[str, str, str], None] | None = None,
+        running: RunningFsmSpec | None = None,
+        safety_to_parent: Iterable[str] = (),
+    ) -> None:
+        self.composite = composite
+        self.children = tuple(children)
+        self.is_root = is_root
+        self._raise = raise_event
+        self._on_state = on_state
+        self._running = running
+        self._safety_to_parent = tuple(safety_to_parent)
+        self._memory = _Memory()
+        self._last_event = ''
+        self._entered: list[str] = []
+        self.state = 'Init'
+        self._transitions: list[_Transition] = []
+        self._adopted: dict[str, str] = {}
+        self._add_transitions()
+        self._stopping = next(t for t in self._transitions if t.source == 'Active.Stop.Stopping')
+        self._machine = _Machine(
+            model=self,
+            states=self._states(),
+            initial='Init',
+            auto_transitions=False,
+            ignore_invalid_triggers=True,
+            send_event=True,
+            model_attribute='state',
+            after_state_change=self._after_state_change,
+        )
+        for t in self._transitions:
+            self._machine.add_transition(
+                '_evaluate', t.source, t.target, conditions=[self._guard(t)])
+
+    # -- event names ------------------------------------------------------------------------------
+
+    def ev(self, suffix: str, name: str | None = None) -> str:
+        return f'e_{name or self.composite}_{suffix}'
+
+    def is_relevant(self, event: str) -> bool:
+        """Whether this FSM reacts to ``event`` (anything else is ignored without cost)."""
+        if event == SAFETY_EVENT or any(event in t.requires for t in self._transitions):
+            return True
+        return any(event.startswith(f'e_{child}_') for child in self._adopted)
+
+    # -- run-time re-composition ----------------------------------------------------------------------
+
+    def adopt(self, child: str) -> None:
+        """A child composite added while this one runs (paper §6.1: a new Task goes through the
+        life-cycle until Running while the rest keeps running): command it on through Configure,
+        Start and Run, and wait for it when stopping."""
+        if child in self.children:
+            return
+        self.children = self.children + (child,)
+        self._stopping.requires = self._stopping.requires | {self.ev('stopped', child)}
+        self._adopted[child] = 'configure'
+        self._raise(self.ev('configure', child), False)
+
+    def _drive_adopted(self, event: str) -> None:
+        for child, step in self._adopted.items():
+            if step == 'configure' and event == self.ev('configured', child):
+                self._adopted[child] = 'start'
+                self._raise(self.ev('start', child), False)
+            elif step == 'start' and event == self.ev('started', child):
+                self._adopted[child] = 'run'
+                self._raise(self.ev('run', child), False)
+            elif step == 'run' and event == self.ev('running', child):
+                self._adopted[child] = 'running'
+
+    # -- processing ---------------------------------------------------------------------------------
+
+    def process(self, event: str) -> bool:
+        """Feed one event; returns True if it changed the state."""
+        self._memory.events.add(event)
+        self._last_event = event
+        if self._adopted:
+            self._drive_adopted(event)
+        moved = False
+        # Bounded: every pass enters a new state; transitions that need no event chain on.
+        for _ in range(64):
+            if not self._evaluate():
+                return moved
+            moved = True
+        raise RuntimeError(f'{self.composite}: life-cycle FSM does not settle in {self.state}')
+
+    def _guard(self, transition: _Transition) -> Callable[..., bool]:
+        return lambda _event_data: transition.requires <= self._memory.events
+
+    def _after_state_change(self, event_data) -> None:
+        previous = event_data.transition.source
+        event, self._last_event = self._last_event, ''
+        if self._on_state is not None:
+            self._on_state(self.state, previous, event)
+        for path in self._entered:
+            self._entry_actions(path)
+        self._entered = []
+
+    def _entry(self, path: str) -> Callable[..., None]:
+        def on_enter(_event_data) -> None:
+            # Event memory is cleared on every state entry (rFSM event-memory extension).
+            self._memory.events.clear()
+            self._entered.append(path)
+        return on_enter
+
+    # -- structure --------------------------------------------------------------------------------
+
+    def _states(self) -> list:
+        """The statechart of Figs. 4 and 5, with an entry callback on every state."""
+        return [self._with_entries(s, '') for s in self._chart()]
+
+    def _with_entries(self, state, parent: str) -> dict:
+        spec = {'name': state} if isinstance(state, str) else dict(state)
+        path = f"{parent}.{spec['name']}" if parent else spec['name']
+        spec['on_enter'] = [self._entry(path)]
+        if 'children' in spec:
+            spec['children'] = [self._with_entries(c, path) for c in spec['children']]
+        return spec
+
+    def _chart(self) -> list:
+        running: dict = {'name': 'Running'}
+        if self._running is not None:
+            running['children'] = [s.name for s in self._running.states]
+            running['initial'] = self._running.initial
+        return [
+            'Init',
+            {'name': 'Active', 'initial': 'Configure', 'children': [
+                {'name': 'Configure', 'initial': 'Configuring', 'children': [
+                    {'name': 'Configuring', 'initial': 'DeployEntities',
+                     'children': ['DeployEntities', 'ConfigureEntities']},
+                    {'name': 'Configured', 'initial': 'ConnectEntities',
+                     'children': ['ConnectEntities', 'NotifyConfigured']},
+                ]},
+                {'name': 'Start', 'initial': 'Starting', 'children': ['Starting', 'Started']},
+                {'name': 'Run', 'initial': 'PreRunning', 'children': ['PreRunning', running]},
+                {'name': 'Stop', 'initial': 'Stopping', 'children': [
+                    'Stopping',
+                    {'name': 'Stopped', 'initial': 'Disengage', 'children': [
+                        'Disengage', 'CleanupComputation', 'Cleanup', 'NotifyStopped']},
+                ]},
+            ]},
+            'Safety',
+        ]
+
+    def _add_transitions(self) -> None:
+        ev, kids = self.ev, self.children
+        configured = 'Active.Configure.Configured'
+
+        def add(source: str, target: str, *requires: str) -> None:
+            self._transitions.append(_Transition(source, target, frozenset(requires)))
+
+        # Safety first: it has priority over every other transition of Active.
+        for failure in ('deploy_failed', 'configure_failed', 'connect_failed', 'scheduler_failed'):
+            add('Active', 'Safety', ev(failure))
+        add('Active', 'Safety', SAFETY_EVENT)
+        add('Init', 'Active', ev('configure'))
+        add('Safety', 'Active', ev('configure'))  # leaving Safety requires reconfiguration
+        add('Safety', 'Active.Stop', ev('stop'))  # an orderly teardown is still possible
+
+        add('Active.Configure.Configuring.DeployEntities', 'Active.Configure.Configuring.ConfigureEntities',
+            ev('deployed'))
+        add('Active.Configure.Configuring.ConfigureEntities', configured,
+            ev('entities_configured'), *(ev('configured', k) for k in kids))
+        add(f'{configured}.ConnectEntities', f'{configured}.NotifyConfigured', ev('connected'))
+        own = () if self.is_root else (ev('start'),)
+        add(f'{configured}.NotifyConfigured', 'Active.Start', *own)
+        add('Active.Start.Starting', 'Active.Start.Started',
+            ev('scheduler_initialized'), *(ev('started', k) for k in kids))
+        own = () if self.is_root else (ev('run'),)
+        add('Active.Start.Started', 'Active.Run', *own)
+        add('Active.Run.PreRunning', 'Active.Run.Running',
+            ev('scheduler_activated'), *(ev('running', k) for k in kids))
+        if self._running is not None:
+            for t in self._running.transitions:
+                add(f'Active.Run.Running.{t.source}', f'Active.Run.Running.{t.target}', *t.events)
+        add('Active.Configure', 'Active.Stop', ev('stop'))
+        add('Active.Start', 'Active.Stop', ev('stop'))
+        add('Active.Run', 'Active.Stop', ev('stop'))
+        add('Active.Stop.Stopping', 'Active.Stop.Stopped', *(ev('stopped', k) for k in kids))
+        stopped = 'Active.Stop.Stopped'
+        add(f'{stopped}.Disengage', f'{stopped}.CleanupComputation', ev('disengaged'))
+        add(f'{stopped}.CleanupComputation', f'{stopped}.Cleanup', ev('computation_cleaned'))
+        add(f'{stopped}.Cleanup', f'{stopped}.NotifyStopped', ev('cleaned'))
+
+    def _entry_actions(self, state: str) -> None:
+        """Events raised on entering ``state``: -ing states act on this composite, then children."""
+        ev, kids, up = self.ev, self.children, self._raise
+        leaf = state.rsplit('.', 1)[-1]
+        own = lambda suffix: up(ev(suffix), False)  # noqa: E731
+        to_children = lambda suffix: [up(ev(suffix, k), False) for k in kids]  # noqa: E731
+        notify = lambda suffix: up(ev(suffix), True)  # noqa: E731
+        if leaf == 'DeployEntities':
+            own('deploy')
+        elif leaf == 'ConfigureEntities':
+            own('configure_entities')
+            to_children('configure')
+        elif leaf == 'ConnectEntities':
+            own('connect')
+        elif leaf == 'NotifyConfigured':
+            notify('configured')
+        elif leaf == 'Starting':
+            own('scheduler_initialize')
+            to_children('start')
+        elif leaf == 'Started':
+            notify('started')
+        elif leaf == 'PreRunning':
+            to_children('run')
+            own('scheduler_activate')
+        elif state == 'Active.Run.Running':
+            notify('running')
+        elif state.startswith('Active.Run.Running.') and self._running is not None:
+            for s in self._running.states:
+                if s.name == leaf:
+                    for name in s.raise_on_entry:
+                        up(name, False)
+        elif leaf == 'Stopping':
+            to_children('stop')
+        elif leaf == 'Disengage':
+            own('disengage')
+        elif leaf == 'CleanupComputation':
+            own('cleanup_computation')
+        elif leaf == 'Cleanup':
+            own('cleanup')
+        elif leaf == 'NotifyStopped':
+            notify('stopped')
+        elif leaf == 'Safety':
+            own('safety')
+            for name in self._safety_to_parent:
+                up(name, True)
+
+    @property
+    def running_substate(self) -> str | None:
+        prefix = 'Active.Run.Running.'
+        return self.state[len(prefix):] if self.state.startswith(prefix) else None

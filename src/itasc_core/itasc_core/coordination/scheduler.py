@@ -1,0 +1,151 @@
+"""The Scheduler (paper §3.1, §6.1): the order of execution of a composite's Functional Entities.
+
+Time-triggered by the parent's Scheduler (the root's by the Timer), it runs its computations in
+the declared order and triggers child composites' Schedulers in the same tick, directly, never
+through their Coordinators (§6.1: a Task must compute in the tick it is triggered). A child in
+this process is called; a child in another process gets a trigger message on its trigger topic.
+It answers the Coordinator's life-cycle events (initialise, activate, disengage, Safety) and
+switches single entities on and off (``e_<entity>_activate`` / ``e_<entity>_deactivate``).
+"""
+
+from __future__ import annotations
+
+import traceback
+from dataclasses import dataclass
+from typing import Callable
+
+from std_msgs.msg import Float64
+
+from ..communication.events import EventListener
+from ..communication.qos import DATA_QOS
+from ..computation.functional_entity import FunctionalEntity
+from ..computation.monitor import Monitor
+from ..entity import CompositeContext, Entity
+
+__all__ = ['Scheduler']
+
+
+@dataclass
+class _Item:
+    name: str
+    run: Callable[[float], None]
+    entity: FunctionalEntity | None = None
+    enabled: bool = True
+
+
+class Scheduler(Entity):
+    """Runs the composite's computations, in order, every tick it is given."""
+
+    def __init__(self, *, composite: CompositeContext, remote_trigger: bool = False) -> None:
+        super().__init__('scheduler', composite=composite)
+        self._items: list[_Item] = []
+        self._monitors: list[Monitor] = []
+        self.active = False
+        self.ticks = 0
+        self.faulted = False
+        c = composite.name
+        self._handlers = {
+            f'e_{c}_scheduler_initialize': self._initialize,
+            f'e_{c}_scheduler_activate': self._activate,
+            f'e_{c}_disengage': self._disengage,
+            f'e_{c}_safety': self._safety,
+        }
+        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._on_event,
+                                     accept=self._accepts, immediate=True)
+        self._trigger_sub = None
+        if remote_trigger:
+            self._trigger_sub = self.create_subscription(
+                Float64, composite.trigger_topic, lambda msg: self.tick(msg.data), DATA_QOS)
+
+    # -- structure, set by the Composer ------------------------------------------------------------
+
+    def add_entity(self, entity: FunctionalEntity, *, index: int | None = None) -> None:
+        self._insert(_Item(entity.entity_name, entity.update, entity), index)
+
+    def add_child(self, name: str, child: 'Scheduler') -> None:
+        self._insert(_Item(name, child.tick), None)
+
+    def add_remote_child(self, name: str, namespace: str) -> None:
+        publisher = self.create_publisher(Float64, f'{namespace}/trigger', DATA_QOS)
+
+        def trigger(t: float) -> None:
+            publisher.publish(Float64(data=t))
+        self._insert(_Item(name, trigger), None)
+
+    def add_monitor(self, monitor: Monitor) -> None:
+        self._monitors.append(monitor)
+
+    def remove(self, name: str) -> None:
+        self._items = [i for i in self._items if i.name != name]
+        self._monitors = [m for m in self._monitors if m.entity_name != name]
+
+    def _insert(self, item: _Item, index: int | None) -> None:
+        self.remove(item.name)
+        self._items.insert(len(self._items) if index is None else index, item)
+
+    @property
+    def order(self) -> list[str]:
+        return [i.name for i in self._items]
+
+    # -- events -------------------------------------------------------------------------------------
+
+    def _accepts(self, name: str) -> bool:
+        return name in self._handlers or name.endswith('_activate') or name.endswith('_deactivate')
+
+    def _on_event(self, msg) -> None:
+        handler = self._handlers.get(msg.name)
+        if handler is not None:
+            handler()
+            return
+        for item in self._items:
+            if msg.name == f'e_{item.name}_activate':
+                item.enabled = True
+            elif msg.name == f'e_{item.name}_deactivate':
+                item.enabled = False
+
+    def _entities(self):
+        return [i.entity for i in self._items if i.entity is not None] + self._monitors
+
+    def _initialize(self) -> None:
+        for entity in self._entities():
+            entity.start()
+        self.faulted = False
+        self.raise_event(f'e_{self.composite.name}_scheduler_initialized')
+
+    def _activate(self) -> None:
+        self.active = not self.faulted
+        self.raise_event(f'e_{self.composite.name}_scheduler_activated')
+
+    def _disengage(self) -> None:
+        self.active = False
+        for entity in self._entities():
+            entity.disengage()
+        self.raise_event(f'e_{self.composite.name}_disengaged')
+
+    def _safety(self) -> None:
+        self.active = False
+        for entity in self._entities():
+            entity.safe()
+
+    # -- the time-triggered part --------------------------------------------------------------------
+
+    def tick(self, t: float) -> None:
+        if not self.active:
+            return
+        self.ticks += 1
+        try:
+            for item in self._items:
+                if item.enabled:
+                    item.run(t)
+            for monitor in self._monitors:
+                monitor.update(t)
+        except Exception as err:  # noqa: BLE001 - any fault of a computation leads to Safety
+            self.active = False
+            self.faulted = True
+            self.get_logger().error(f'computation failed, raising e_emergency: {err}\n{traceback.format_exc()}')
+            self.raise_event('e_emergency', priority=True, detail=f'{type(err).__name__}: {err}')
+
+    def destroy_node(self) -> None:
+        self._items.clear()
+        self._monitors.clear()
+        super().destroy_node()

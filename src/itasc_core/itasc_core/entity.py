@@ -1,0 +1,61 @@
+"""The common base of every entity of the Composition Pattern (paper §3.1, Fig. 1).
+
+Every entity is an rclpy node living in the namespace of its composite and raising events on that
+composite's event topic. The boundary of knowledge (§3.1) is what an entity is given here: the
+name and topics of its own composite, nothing else.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rclpy.node import Node
+
+from .communication.events import EventRaiser, events_topic
+
+__all__ = ['CompositeContext', 'Entity']
+
+
+@dataclass(frozen=True)
+class CompositeContext:
+    """What an entity knows of the composite it belongs to."""
+
+    name: str
+    namespace: str
+    parent_namespace: str | None = None
+
+    @property
+    def events_topic(self) -> str:
+        return events_topic(self.namespace)
+
+    @property
+    def parent_events_topic(self) -> str:
+        return events_topic(self.parent_namespace or self.namespace)
+
+    @property
+    def state_topic(self) -> str:
+        return f'{self.namespace}/state'
+
+    @property
+    def trigger_topic(self) -> str:
+        return f'{self.namespace}/trigger'
+
+    def child(self, name: str) -> 'CompositeContext':
+        return CompositeContext(name=name, namespace=f'{self.namespace}/{name}', parent_namespace=self.namespace)
+
+
+class Entity(Node):
+    """An rclpy node that belongs to a composite and raises events on its event topic."""
+
+    def __init__(self, name: str, *, composite: CompositeContext, **node_kwargs) -> None:
+        super().__init__(name, namespace=composite.namespace, **node_kwargs)
+        self.composite = composite
+        self.entity_name = name
+        self._raiser = EventRaiser(self, topic=composite.events_topic)
+
+    def raise_event(self, name: str, *, priority: bool = False, detail: str = '') -> None:
+        self._raiser.raise_event(name, priority=priority, detail=detail)
+
+    @property
+    def event_publisher(self):
+        return self._raiser.publisher

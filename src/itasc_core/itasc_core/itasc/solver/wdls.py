@@ -1,0 +1,125 @@
+"""Weighted damped least-squares Solver with strict priorities (paper §2.2, §4.1 "Solver"; the
+original iTaSC WDLS solver).
+
+Per priority level (highest first) the weighted task ``sqrt(W_y) J qdot = sqrt(W_y) ydot`` is
+solved in the null space of all higher levels (null-space projection, Siciliano-Slotine), in
+joint-weighted coordinates ``qdot = W_q^{-1/2} u`` so the minimum-norm part minimises
+``qdot^T W_q qdot``. Each level's damped pseudo-inverse ``V diag(s / (s^2 + lambda^2)) U^T``
+uses variable damping (Maciejewski/Nakamura): ``lambda^2 = lambda_max^2 (1 - (s_min/eps)^2)``
+when the smallest relevant singular value ``s_min`` drops below ``eps``, else 0.
+Inequality rows are handled by a small active-set loop: violated rows become equalities at their
+bound and the cascade is solved again. Finally qdot is scaled uniformly so no joint exceeds its
+velocity limit nor crosses a position limit within the cycle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from time import perf_counter
+
+import numpy as np
+
+from .problem import ConstraintRows, SolverResult, group_levels, velocity_bounds
+
+__all__ = ['WdlsSolver']
+
+
+class WdlsSolver:
+    """Prioritised weighted damped least squares with uniform velocity saturation."""
+
+    def __init__(self, *, joint_weights: float | np.ndarray = 1.0, epsilon: float = 0.05,
+                 max_damping: float = 0.1, rank_tolerance: float = 1e-9,
+                 position_limit_gain: float = 0.5, inequality_iterations: int = 4) -> None:
+        """``joint_weights`` (scalar or per joint, > 0) define the joint-space metric W_q;
+        ``epsilon``/``max_damping`` the variable damping; ``position_limit_gain`` in (0, 1] the
+        fraction of the distance to a position limit allowed in one cycle."""
+        self.joint_weights = joint_weights
+        self.epsilon = epsilon
+        self.max_damping = max_damping
+        self.rank_tolerance = rank_tolerance
+        self.position_limit_gain = position_limit_gain
+        self.inequality_iterations = inequality_iterations
+
+    def solve(self, rows: Sequence[ConstraintRows], *, q: np.ndarray, lower: np.ndarray,
+              upper: np.ndarray, velocity_limit: np.ndarray, dt: float) -> SolverResult:
+        t0 = perf_counter()
+        n = q.shape[0]
+        result = SolverResult(np.zeros(n), tasks=[r.task for r in rows])
+        levels = group_levels(rows)
+        scale = 1.0 / np.sqrt(np.broadcast_to(np.asarray(self.joint_weights, dtype=float), (n,)))
+        active: dict[int, np.ndarray] = {}  # id(row) -> bound targets (nan = inactive)
+        inequalities = [r for level in levels for r in level if r.inequality]
+        for _ in range(self.inequality_iterations):
+            qdot = scale * self._cascade(levels, scale, active, result)
+            changed = False
+            for r in inequalities:
+                y = r.J @ qdot
+                target = active.setdefault(id(r), np.full(y.shape, np.nan))
+                new = np.isnan(target) & ((y < r.lower - 1e-9) | (y > r.upper + 1e-9))
+                if new.any():
+                    target[new] = np.where(y[new] < r.lower[new], r.lower[new], r.upper[new])
+                    changed = True
+            if not changed:
+                break
+        result.infeasible = any(
+            ((r.J @ qdot < r.lower - 1e-6) | (r.J @ qdot > r.upper + 1e-6)).any()
+            for r in inequalities)
+        if not np.isfinite(qdot).all():
+            qdot[:] = 0.0
+            result.infeasible = True
+        lo, hi = velocity_bounds(q, lower, upper, velocity_limit, dt, self.position_limit_gain)
+        bound = np.where(qdot > 0.0, np.maximum(hi, 0.0), np.minimum(lo, 0.0))
+        exceeded = np.abs(qdot) > np.abs(bound)
+        factor = float(np.divide(bound, qdot, out=np.ones(n), where=exceeded).min(initial=1.0))
+        if factor < 1.0:
+            qdot *= max(factor, 0.0)
+            result.saturated = True
+        result.qdot = qdot
+        result.set_status()
+        result.solve_time = perf_counter() - t0
+        return result
+
+    def _cascade(self, levels: list[list[ConstraintRows]], scale: np.ndarray,
+                 active: dict[int, np.ndarray], result: SolverResult) -> np.ndarray:
+        """One pass over the priority levels; returns u (qdot = scale * u)."""
+        n = scale.shape[0]
+        u = np.zeros(n)
+        projector: np.ndarray | None = None  # None = identity
+        free = n
+        result.min_singular_value, result.damping, result.singular = float('inf'), 0.0, False
+        eps, tol = self.epsilon, self.rank_tolerance
+        for level in levels:
+            parts = []
+            for r in level:
+                if not r.inequality:
+                    parts.append((r.J, r.desired, r.weights))
+                elif id(r) in active:
+                    mask = ~np.isnan(active[id(r)])
+                    if mask.any():
+                        parts.append((r.J[mask], active[id(r)][mask], r.weights[mask]))
+            if not parts:
+                continue
+            J, desired, weights = (np.concatenate(x) for x in zip(*parts))
+            sw = np.sqrt(weights)
+            A = (sw[:, None] * J) * scale
+            b = sw * desired - A @ u
+            Ap = A if projector is None else A @ projector
+            U, s, Vt = np.linalg.svd(Ap, full_matrices=False)
+            relevant = min(s.shape[0], free)
+            s_min = float(s[relevant - 1])
+            lam2 = 0.0
+            if s_min < eps:
+                lam2 = self.max_damping ** 2 * (1.0 - (s_min / eps) ** 2)
+                result.singular = True
+            result.min_singular_value = min(result.min_singular_value, s_min)
+            result.damping = max(result.damping, float(np.sqrt(lam2)))
+            rank = int(np.count_nonzero(s > tol))
+            gain = np.zeros_like(s)
+            gain[:rank] = s[:rank] / (s[:rank] ** 2 + lam2)
+            u += Vt.T @ (gain * (U.T @ b))
+            basis = Vt[:rank]
+            projector = (np.eye(n) if projector is None else projector) - basis.T @ basis
+            free -= rank
+            if free <= 0:
+                break
+        return u

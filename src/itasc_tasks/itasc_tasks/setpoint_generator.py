@@ -1,0 +1,200 @@
+"""Setpoint Generators (paper §4.1): desired values for a Task's controller.
+
+Each generator is called with the time t and returns ``(value, velocity)``: the setpoint and its
+velocity feed-forward. Values are numpy vectors (output space of the Task) or ``pin.SE3`` (a
+Cartesian target: the desired pose of o2 in o1); for SE3 the velocity is the 6-D twist
+``[d/dt p ; omega]`` in o1 coordinates, matching ``CartesianVKC`` rows. Point-to-point
+generators interpolate position linearly and orientation along the geodesic (exp/log on SO(3)).
+A generator that is not ``started`` is started by its Task from the current output.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = ['FixedSetpoint', 'MinimumJerkSetpoint', 'TrapezoidalSetpoint', 'PeriodicSetpoint',
+           'TopicSetpoint', 'Value']
+
+Value = np.ndarray | pin.SE3
+
+
+def _as_value(value: Value | Sequence[float] | float) -> Value:
+    return pin.SE3(value) if isinstance(value, pin.SE3) else np.atleast_1d(
+        np.asarray(value, dtype=float)).copy()
+
+
+def _zero_velocity(value: Value) -> np.ndarray:
+    return np.zeros(6) if isinstance(value, pin.SE3) else np.zeros_like(value)
+
+
+class FixedSetpoint:
+    """A constant setpoint."""
+
+    started = True
+
+    def __init__(self, value: Value | Sequence[float] | float) -> None:
+        self.value = _as_value(value)
+
+    def start(self, value: Value, t: float) -> None:
+        """Nothing to start: the setpoint is fixed."""
+
+    def __call__(self, t: float) -> tuple[Value, np.ndarray]:
+        return self.value, _zero_velocity(self.value)
+
+
+class _PointToPoint:
+    """Smooth motion from the start value to ``target`` along a scalar profile s(t) in [0, 1]."""
+
+    def __init__(self, target: Value | Sequence[float] | float, *, duration: float = 0.0,
+                 max_velocity: float | Sequence[float] | None = None) -> None:
+        """``duration``: minimum duration [s]; ``max_velocity``: per component (vector target)
+        or ``(linear, angular)`` (SE3 target); the motion lasts the longest of the two."""
+        self.target = _as_value(target)
+        self.duration = duration
+        self.max_velocity = max_velocity
+        self.started = False
+        self._from: Value = self.target
+        self._t0 = 0.0
+        self._delta = np.zeros(0)  # vector: target - start; SE3: [dp, log3(R0^T R1)]
+        self.period = 0.0  # actual duration of the current motion
+
+    def retarget(self, target: Value | Sequence[float] | float) -> None:
+        """New target: the Task restarts the motion from the current output."""
+        self.target = _as_value(target)
+        self.started = False
+
+    def start(self, value: Value, t: float) -> None:
+        self._from, self._t0, self.started = _as_value(value), t, True
+        if isinstance(self.target, pin.SE3):
+            a, b = self._from, self.target
+            self._delta = np.concatenate([b.translation - a.translation,
+                                          pin.log3(a.rotation.T @ b.rotation)])
+            lengths = np.array([np.linalg.norm(self._delta[:3]), np.linalg.norm(self._delta[3:])])
+        else:
+            self._delta = self.target - self._from
+            lengths = np.abs(self._delta)
+        self.period = self._period(lengths)
+
+    def _normalised_limit(self, lengths: np.ndarray, limit: float | Sequence[float]) -> float:
+        """The tightest path-parameter rate allowed by per-component limits."""
+        limit = np.broadcast_to(np.asarray(limit, dtype=float), lengths.shape)
+        moving = lengths > 1e-12
+        return float(np.min(limit[moving] / lengths[moving])) if moving.any() else math.inf
+
+    def _period(self, lengths: np.ndarray) -> float:
+        raise NotImplementedError
+
+    def _profile(self, t: float) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def __call__(self, t: float) -> tuple[Value, np.ndarray]:
+        s, sdot = self._profile(t - self._t0) if self.period > 0.0 else (1.0, 0.0)
+        if isinstance(self._from, pin.SE3):
+            a, d = self._from, self._delta
+            pose = pin.SE3(a.rotation @ pin.exp3(s * d[3:]), a.translation + s * d[:3])
+            return pose, sdot * np.concatenate([d[:3], a.rotation @ d[3:]])
+        return self._from + s * self._delta, sdot * self._delta
+
+
+class MinimumJerkSetpoint(_PointToPoint):
+    """Minimum-jerk point-to-point motion, s = 10 tau^3 - 15 tau^4 + 6 tau^5 (peak velocity
+    1.875 x the mean), time-bounded (``duration``) and/or velocity-bounded (``max_velocity``)."""
+
+    def _period(self, lengths: np.ndarray) -> float:
+        rate = math.inf if self.max_velocity is None else self._normalised_limit(
+            lengths, self.max_velocity)
+        return max(self.duration, 1.875 / rate if rate < math.inf else 0.0)
+
+    def _profile(self, t: float) -> tuple[float, float]:
+        tau = min(max(t / self.period, 0.0), 1.0)
+        s = tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+        sdot = 30.0 * tau * tau * (1.0 - tau) ** 2 / self.period
+        return s, sdot
+
+
+class TrapezoidalSetpoint(_PointToPoint):
+    """Trapezoidal-velocity point-to-point motion with per-component ``max_velocity`` and
+    ``max_acceleration``, stretched (same acceleration, lower cruise speed) to ``duration``."""
+
+    def __init__(self, target: Value | Sequence[float] | float, *,
+                 max_velocity: float | Sequence[float] = 1.0,
+                 max_acceleration: float | Sequence[float] = 1.0, duration: float = 0.0) -> None:
+        super().__init__(target, duration=duration, max_velocity=max_velocity)
+        self.max_acceleration = max_acceleration
+        self._acc = self._cruise = 0.0
+
+    def _period(self, lengths: np.ndarray) -> float:
+        v = self._normalised_limit(lengths, self.max_velocity)
+        a = self._normalised_limit(lengths, self.max_acceleration)
+        if math.isinf(v) or math.isinf(a):
+            return 0.0
+        shortest = 2.0 / math.sqrt(a) if v * v >= a else 1.0 / v + v / a
+        period = max(self.duration, shortest)
+        self._acc = a
+        self._cruise = (a * period - math.sqrt(max(a * a * period * period - 4.0 * a, 0.0))) / 2
+        return period
+
+    def _profile(self, t: float) -> tuple[float, float]:
+        a, v, T = self._acc, self._cruise, self.period
+        ta = v / a
+        if t <= 0.0:
+            return 0.0, 0.0
+        if t < ta:
+            return 0.5 * a * t * t, a * t
+        if t < T - ta:
+            return 0.5 * a * ta * ta + v * (t - ta), v
+        if t < T:
+            return 1.0 - 0.5 * a * (T - t) ** 2, a * (T - t)
+        return 1.0, 0.0
+
+
+class PeriodicSetpoint:
+    """A sinusoid ``offset + amplitude sin(2 pi t / period + phase)`` (vectors broadcast)."""
+
+    started = True
+
+    def __init__(self, *, amplitude: float | Sequence[float], period: float,
+                 offset: float | Sequence[float] = 0.0, phase: float | Sequence[float] = 0.0
+                 ) -> None:
+        self.amplitude = np.atleast_1d(np.asarray(amplitude, dtype=float))
+        self.offset = np.atleast_1d(np.asarray(offset, dtype=float))
+        self.phase = np.atleast_1d(np.asarray(phase, dtype=float))
+        self.period = period
+
+    def start(self, value: Value, t: float) -> None:
+        """Nothing to start: the sinusoid is a function of absolute time."""
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        w = 2.0 * math.pi / self.period
+        angle = w * t + self.phase
+        value = self.offset + self.amplitude * np.sin(angle)
+        return value, np.broadcast_to(self.amplitude * w * np.cos(angle), value.shape).copy()
+
+
+class TopicSetpoint:
+    """Holds the last value pushed into it (from a topic); holds the current output until the
+    first value arrives."""
+
+    def __init__(self, value: Value | Sequence[float] | float | None = None) -> None:
+        self.value: Value | None = None if value is None else _as_value(value)
+        self.velocity: np.ndarray | None = None
+
+    @property
+    def started(self) -> bool:
+        return self.value is not None
+
+    def push(self, value: Value | Sequence[float] | float,
+             velocity: Sequence[float] | None = None) -> None:
+        self.value = _as_value(value)
+        self.velocity = None if velocity is None else np.asarray(velocity, dtype=float)
+
+    def start(self, value: Value, t: float) -> None:
+        self.value = _as_value(value)
+
+    def __call__(self, t: float) -> tuple[Value, np.ndarray]:
+        assert self.value is not None, 'TopicSetpoint called before any value'
+        return self.value, _zero_velocity(self.value) if self.velocity is None else self.velocity

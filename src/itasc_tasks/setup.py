@@ -1,0 +1,21 @@
+from setuptools import find_packages, setup
+
+package_name = 'itasc_tasks'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    maintainer='iTaSC-ROS2 maintainers',
+    maintainer_email='itasc-ros2@example.com',
+    description='Task composites of iTaSC-ROS2: virtual kinematic chains, constraint outputs, constraint controllers, setpoint generators.',
+    license='Apache-2.0',
+    extras_require={'test': ['pytest']},
+    entry_points={'console_scripts': []},
+)
