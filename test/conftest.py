@@ -28,6 +28,9 @@ def _test_domain_id() -> int:
 
 
 os.environ['ROS_DOMAIN_ID'] = str(_test_domain_id())
+# Our Fast DDS profile (intra-process delivery off, see itasc_core/communication/fastdds.xml).
+os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE',
+                      str(REPO_ROOT / 'src/itasc_core/itasc_core/communication/fastdds.xml'))
 # Keep discovery on this machine even when the suite runs outside scripts/env.sh.
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
@@ -36,3 +39,8 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 def repo_root() -> pathlib.Path:
     """Absolute path of the repository root."""
     return REPO_ROOT
+
+# Functional Entity kinds used by the runtime tests (``test_support.probes:...``).
+import sys  # noqa: E402
+
+sys.path.insert(0, str(REPO_ROOT / 'test' / 'support'))

@@ -56,6 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     model = load(args.app, args.rate)
 
+    from itasc_core.communication.dds import configure_dds
+    configure_dds()
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 

@@ -13,13 +13,13 @@ The file follows the MCAP ``ros2`` profile as rosbag2's MCAP storage plugin writ
   publish time both the receive time (ns since the epoch).
 
 Topics are discovered, not listed: every ``scan_period`` the node looks at the ROS graph and
-subscribes to each new topic under ``prefix`` with a QoS that matches its publishers (reliable
-unless a publisher is best effort, keep-last ``depth``, transient local for ``.../state`` topics
-and for topics whose publishers all offer it, so latched states are not missed).
+subscribes to each new topic under ``prefix`` with a QoS that matches its publishers: keep-last
+``depth``, reliable unless a publisher is best effort, transient local when all publishers offer
+it (the Coordinators' latched ``.../state`` topics: a state published before the recorder
+subscribed is still recorded).
 
 Ending a recording: :meth:`Recorder.close` finishes the file (MCAP summary and footer) and is
-idempotent; ``destroy_node()``, ``rclpy.shutdown()`` of the node's context and interpreter exit
-(atexit) all call it. With rclpy's default signal handling, SIGINT/SIGTERM make ``spin`` raise
+idempotent; ``destroy_node()`` and interpreter exit (atexit) call it too. With rclpy's default signal handling, SIGINT/SIGTERM make ``spin`` raise
 (``KeyboardInterrupt`` / ``ExternalShutdownException``) so the caller's ``finally`` runs; for a
 process that disables rclpy's handlers, :func:`install_signal_handlers` does the job. Only a
 SIGKILL loses the summary; the file is flushed every ``flush_period`` so that ``mcap recover``
@@ -115,7 +115,6 @@ class Recorder(Node):
         self._writer = Writer(self._stream, compression=_COMPRESSION[compression])
         self._writer.start(profile='ros2', library='itasc_bringup.recording (mcap python)')
 
-        self.context.on_shutdown(self.close)
         self._atexit = _weak_close(self)
         atexit.register(self._atexit)
         self._timer = self.create_timer(scan_period, self._scan)
@@ -134,7 +133,8 @@ class Recorder(Node):
             if not publishers:
                 continue  # only subscribers so far: nothing to record, look again later
             if len(types) > 1:
-                self.get_logger().warning(f'{topic} has several types {types}; recording {types[0]}')
+                self.get_logger().warning(
+                    f'{topic} has several types {types}; recording {types[0]}')
             self._subscribe(topic, types[0], publishers)
         if time.monotonic() - self._last_flush >= self._flush_period:
             self._last_flush = time.monotonic()
@@ -142,14 +142,15 @@ class Recorder(Node):
                 if not self._closed:
                     self._writer.flush()
 
-    def _qos(self, topic: str, publishers: list) -> QoSProfile:
+    def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]
         best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
-        latched = topic.endswith('/state') or all(
-            q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+        # Requesting transient local from a volatile publisher would get nothing at all.
+        latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
         return QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=self.depth,
-            reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+            reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
+                         else ReliabilityPolicy.RELIABLE),
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
     def _subscribe(self, topic: str, type_name: str, publishers: list) -> None:
@@ -173,8 +174,8 @@ class Recorder(Node):
             channel_id = self._writer.register_channel(topic, 'cdr', schema_id, metadata)
         self.topics[topic] = type_name
         self.counts[topic] = 0
-        self.create_subscription(msg_class, topic, functools.partial(self._write, topic, channel_id),
-                                 self._qos(topic, publishers), raw=True)
+        callback = functools.partial(self._write, topic, channel_id)
+        self.create_subscription(msg_class, topic, callback, self._qos(publishers), raw=True)
         self.get_logger().debug(f'recording {topic} ({type_name})')
 
     # ----------------------------------------------------------------- writing

@@ -16,6 +16,8 @@ Configurator can switch them between named configurations (e.g. ``high_accuracy_
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -26,7 +28,7 @@ class PController:
     """Proportional control with feed-forward and output saturation."""
 
     def __init__(self, *, kp: float | np.ndarray = 1.0,
-                 max_output: float | np.ndarray = np.inf) -> None:
+                 max_output: float | np.ndarray = math.inf) -> None:
         self.kp = kp
         self.max_output = max_output
         self.rotation: slice | None = None
@@ -47,9 +49,12 @@ class PController:
                  dt: float) -> np.ndarray:
         """Desired output velocity for output y, setpoint y_desired and its feed-forward."""
         self.error = self.compute_error(y, y_desired)
-        self.output = np.clip(feedforward + self._law(self.error, dt),
-                              -np.asarray(self.max_output), self.max_output)
-        return self.output
+        out = feedforward + self._law(self.error, dt)
+        limit = self.max_output
+        if not (isinstance(limit, float) and math.isinf(limit)):
+            out = np.minimum(np.maximum(out, -np.asarray(limit)), limit)
+        self.output = out
+        return out
 
     def reset(self) -> None:
         """Forget internal state (nothing for P)."""
@@ -61,8 +66,8 @@ class PIDController(PController):
     finite difference of the error (zero on the first call after ``reset``)."""
 
     def __init__(self, *, kp: float | np.ndarray = 1.0, ki: float | np.ndarray = 0.0,
-                 kd: float | np.ndarray = 0.0, max_output: float | np.ndarray = np.inf,
-                 max_integral: float | np.ndarray = np.inf) -> None:
+                 kd: float | np.ndarray = 0.0, max_output: float | np.ndarray = math.inf,
+                 max_integral: float | np.ndarray = math.inf) -> None:
         super().__init__(kp=kp, max_output=max_output)
         self.ki, self.kd, self.max_integral = ki, kd, max_integral
         self.integral: np.ndarray | None = None

@@ -38,12 +38,13 @@ class FixedSetpoint:
 
     def __init__(self, value: Value | Sequence[float] | float) -> None:
         self.value = _as_value(value)
+        self._velocity = _zero_velocity(self.value)
 
     def start(self, value: Value, t: float) -> None:
         """Nothing to start: the setpoint is fixed."""
 
     def __call__(self, t: float) -> tuple[Value, np.ndarray]:
-        return self.value, _zero_velocity(self.value)
+        return self.value, self._velocity
 
 
 class _PointToPoint:

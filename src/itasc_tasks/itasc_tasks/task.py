@@ -9,6 +9,7 @@ bound is recovered at rate kp and a satisfied one is approached no faster than e
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -44,7 +45,8 @@ class TaskComputation:
         self.inequality = lower is not None or upper is not None
         self.setpoint = setpoint
         self.priority = priority
-        self.weights = weights
+        self.weights = weights  # may be switched by a Configurator
+        self._weights: object = None
         self.lower = -np.inf if lower is None else np.asarray(lower, dtype=float)
         self.upper = np.inf if upper is None else np.asarray(upper, dtype=float)
         self.y = np.zeros(0)
@@ -89,8 +91,10 @@ class TaskComputation:
             self.controller.rotation = self.output.rotation
             rows.desired = rows.lower = rows.upper = self.controller(y, value, feedforward, dt)
             self.error = self.controller.error
-        self.error_norm = float(np.linalg.norm(self.error))
+        self.error_norm = math.sqrt(float(self.error @ self.error))
         rows.priority = self.priority
         rows.J = self.output.jacobian
-        rows.weights = np.broadcast_to(np.asarray(self.weights, dtype=float), y.shape)
+        if rows.weights.shape != y.shape or self._weights is not self.weights:
+            rows.weights = np.broadcast_to(np.asarray(self.weights, dtype=float), y.shape).copy()
+            self._weights = self.weights
         return rows

@@ -49,14 +49,12 @@ class CartesianVKC:
 
     def compute(self, scene: Scene) -> None:
         self.pose = scene.relative_pose(self.o1, self.o2)
-        J = scene.relative_jacobian(self.o1, self.o2)
-        if self.coordinates == 'log6':
-            Rt = self.pose.rotation.T
-            J[:3] = Rt @ J[:3]  # body twist of o2 relative to o1
-            J[3:] = Rt @ J[3:]
-            J = pin.Jlog6(self.pose) @ J
         self.features = self.features_of(self.pose)
-        self.jacobian = J
+        if self.coordinates == 'log6':
+            self.jacobian = pin.Jlog6(self.pose) @ scene.relative_jacobian(
+                self.o1, self.o2, expressed='o2')
+        else:
+            self.jacobian = scene.relative_jacobian(self.o1, self.o2)
 
 
 class DistanceVKC:

@@ -16,6 +16,7 @@ import time
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
+from ..communication.dds import configure_dds
 from ..entity import CompositeContext
 from .composer import bring_up
 from .deployment import Runtime, make_executor
@@ -35,6 +36,7 @@ def main(argv: list[str] | None = None) -> int:
         model = CompositeModel.model_validate(json.load(spec))
     context = CompositeContext(name=model.name, namespace=args.namespace, parent_namespace=args.parent_namespace)
 
+    configure_dds()
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
     signal.signal(signal.SIGINT, lambda *_: stop.append(True))

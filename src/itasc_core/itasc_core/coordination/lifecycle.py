@@ -285,6 +285,9 @@ class LifecycleFsm:
         if self._running is not None:
             for t in self._running.transitions:
                 add(f'Active.Run.Running.{t.source}', f'Active.Run.Running.{t.target}', *t.events)
+        # A parent reconfiguring (e.g. after its own Safety) reconfigures its children too.
+        add('Active.Start', 'Active', ev('configure'))
+        add('Active.Run', 'Active', ev('configure'))
         add('Active.Configure', 'Active.Stop', ev('stop'))
         add('Active.Start', 'Active.Stop', ev('stop'))
         add('Active.Run', 'Active.Stop', ev('stop'))

@@ -160,25 +160,28 @@ class Scene:
         """Pose of o2 expressed in o1: ``T_{o1,o2} = T_{w,o1}^-1 T_{w,o2}``."""
         return self.frame(o1).pose().actInv(self.frame(o2).pose())
 
-    def relative_jacobian(self, o1: str, o2: str) -> np.ndarray:
-        """(6, nv) map from program qdot to the twist of o2 relative to o1, expressed in o1,
-        reference point o2's origin (see the module docstring)."""
+    def relative_jacobian(self, o1: str, o2: str, *, expressed: str = 'o1') -> np.ndarray:
+        """(6, nv) map from program qdot to the twist of o2 relative to o1, reference point o2's
+        origin, expressed in o1 (default, see the module docstring) or in o2 (``'o2'``: the
+        body twist of o2 relative to o1)."""
         f1, f2 = self.frame(o1), self.frame(o2)
         T1 = f1.pose()
-        J = np.zeros((6, self.nv))
-        if f2.robot is not None:
-            J[:, f2.columns] = pin.getFrameJacobian(f2.robot.model, f2.robot.data, f2.fid,
-                                                    pin.LOCAL_WORLD_ALIGNED)
-        if f1.robot is not None:
-            J1 = pin.getFrameJacobian(f1.robot.model, f1.robot.data, f1.fid,
-                                      pin.LOCAL_WORLD_ALIGNED)
-            d = f2.pose().translation - T1.translation
-            J[:3, f1.columns] += pin.skew(d) @ J1[3:] - J1[:3]
-            J[3:, f1.columns] -= J1[3:]
-        Rt = T1.rotation.T
-        J[:3] = Rt @ J[:3]
-        J[3:] = Rt @ J[3:]
-        return J
+        if f1.robot is None and f2.robot is not None and f2.robot.nv == self.nv:
+            J = pin.getFrameJacobian(f2.robot.model, f2.robot.data, f2.fid,
+                                     pin.LOCAL_WORLD_ALIGNED)
+        else:
+            J = np.zeros((6, self.nv))
+            if f2.robot is not None:
+                J[:, f2.columns] = pin.getFrameJacobian(f2.robot.model, f2.robot.data, f2.fid,
+                                                        pin.LOCAL_WORLD_ALIGNED)
+            if f1.robot is not None:
+                J1 = pin.getFrameJacobian(f1.robot.model, f1.robot.data, f1.fid,
+                                          pin.LOCAL_WORLD_ALIGNED)
+                d = f2.pose().translation - T1.translation
+                J[:3, f1.columns] += pin.skew(d) @ J1[3:] - J1[:3]
+                J[3:, f1.columns] -= J1[3:]
+        R = T1.rotation if expressed == 'o1' else f2.pose().rotation
+        return np.matmul(R.T, J.reshape(2, 3, -1)).reshape(6, -1)
 
     def joint_indices(self, names: Iterable[str]) -> np.ndarray:
         """Indices of joints in the program-wide joint vector."""

@@ -76,9 +76,8 @@ def velocity_bounds(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     ``|qdot| <= velocity_limit``. A joint already beyond a limit may move back at full speed,
     so the box is never empty. Infinite entries stay infinite."""
     k = gain / dt
-    with np.errstate(invalid='ignore'):
-        lo = np.clip(k * (lower - q), -velocity_limit, velocity_limit)
-        hi = np.clip(k * (upper - q), -velocity_limit, velocity_limit)
+    lo = np.minimum(np.maximum(k * (lower - q), -velocity_limit), velocity_limit)
+    hi = np.minimum(np.maximum(k * (upper - q), -velocity_limit), velocity_limit)
     return lo, hi
 
 

@@ -53,12 +53,14 @@ class QpSolver:
         if self.direct:
             import daqp
             self._daqp = daqp.solve
-        self.joint_weights = joint_weights
+        self.joint_weights = np.asarray(joint_weights, dtype=float)
         self.regularization = regularization
         self.position_limit_gain = position_limit_gain
         self.slack_tolerance = slack_tolerance
         self.rank_tolerance = rank_tolerance
-        defaults = {'osqp': {'eps_abs': 1e-7, 'eps_rel': 1e-7, 'polish': True}}
+        defaults = {'osqp': {'eps_abs': 1e-7, 'eps_rel': 1e-7, 'polishing': True,
+                             'verbose': False, 'raise_error': False},
+                    'proxqp': {'eps_abs': 1e-9, 'eps_rel': 0.0}}
         self.backend_options = {**defaults.get(backend, {}), **(backend_options or {})}
 
     def solve(self, rows: Sequence[ConstraintRows], *, q: np.ndarray, lower: np.ndarray,
@@ -67,19 +69,21 @@ class QpSolver:
         n = q.shape[0]
         result = SolverResult(np.zeros(n), tasks=[r.task for r in rows])
         lb, ub = velocity_bounds(q, lower, upper, velocity_limit, dt, self.position_limit_gain)
-        qdot = np.clip(0.0, lb, ub)  # safe fallback: rest, or back into the position limits
-        reg = self.regularization * np.broadcast_to(
-            np.asarray(self.joint_weights, dtype=float), (n,))
+        qdot = np.minimum(np.maximum(0.0, lb), ub)  # fallback: rest, or back within limits
+        reg = self.regularization * self.joint_weights  # scalar or per joint
         locked = np.zeros((0, n))  # Z^T: orthonormal rows spanning higher-level equality rows
         kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # higher-level inequalities
-        for level in group_levels(rows):
+        levels = group_levels(rows)
+        for k, level in enumerate(levels):
             eq = [r for r in level if not r.inequality]
             ineq = [r for r in level if r.inequality]
-            x = self._solve_level(eq, ineq, locked, qdot, kept, lb, ub, reg)
+            x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
             if x is None:
                 result.infeasible = True
                 break
-            qdot = np.clip(x, lb, ub)
+            qdot = np.minimum(np.maximum(x, lb), ub)
+            if k == len(levels) - 1:
+                break
             for r in ineq:
                 y = r.J @ qdot
                 kept.append((r.J, np.minimum(r.lower, y), np.maximum(r.upper, y)))
@@ -90,12 +94,11 @@ class QpSolver:
         for r in rows:
             if r.inequality:
                 y = r.J @ qdot
-                slack = max(float((r.lower - y).max(initial=0.0)),
-                            float((y - r.upper).max(initial=0.0)))
-                result.infeasible |= slack > self.slack_tolerance
-        at_bound = (np.abs(qdot - ub) <= 1e-7 * (1.0 + np.abs(ub))) & (np.abs(ub) > 1e-9)
-        at_bound |= (np.abs(qdot - lb) <= 1e-7 * (1.0 + np.abs(lb))) & (np.abs(lb) > 1e-9)
-        result.saturated = bool(at_bound.any())
+                violation = np.maximum(r.lower - y, y - r.upper)
+                result.infeasible |= bool(violation.max(initial=0.0) > self.slack_tolerance)
+        # a bound shaped the solution (a zero bound: the joint rests exactly at its limit)
+        result.saturated = bool(((ub - qdot <= 1e-9) & (np.abs(ub) > 1e-9)).any()
+                                or ((qdot - lb <= 1e-9) & (np.abs(lb) > 1e-9)).any())
         result.qdot = qdot
         result.set_status()
         result.solve_time = perf_counter() - t0
@@ -109,30 +112,29 @@ class QpSolver:
         rank = int(np.count_nonzero(s > self.rank_tolerance * max(1.0, float(s[0]))))
         return np.concatenate([locked, Vt[:rank]]) if rank else locked
 
-    def _solve_level(self, eq: list[ConstraintRows], ineq: list[ConstraintRows],
+    def _solve_level(self, n: int, eq: list[ConstraintRows], ineq: list[ConstraintRows],
                      locked: np.ndarray, previous: np.ndarray,
                      kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-                     lb: np.ndarray, ub: np.ndarray, reg: np.ndarray) -> np.ndarray | None:
-        n = reg.shape[0]
+                     lb: np.ndarray, ub: np.ndarray, reg: float | np.ndarray) -> np.ndarray | None:
         ms = sum(r.J.shape[0] for r in ineq)
-        H = np.zeros((n + ms, n + ms))
-        f = np.zeros(n + ms)
-        Hv = H[:n, :n]
+        m = n + ms
+        H = np.zeros((m, m))
+        f = np.zeros(m)
         if eq:
             J = np.concatenate([r.J for r in eq]) if len(eq) > 1 else eq[0].J
             w = np.concatenate([r.weights for r in eq]) if len(eq) > 1 else eq[0].weights
             d = np.concatenate([r.desired for r in eq]) if len(eq) > 1 else eq[0].desired
             WJ = w[:, None] * J
-            Hv += J.T @ WJ
-            f[:n] = -(d @ WJ)
-        Hv[np.diag_indices(n)] += reg
+            np.matmul(J.T, WJ, out=H[:n, :n])
+            np.matmul(-d, WJ, out=f[:n])
+        H.flat[:n * m:m + 1] += reg
         # general constraints C x in [cl, cu]: level inequalities, kept inequalities, locked
         blocks, cl, cu = [], [], []
         if ineq:
-            Ci = np.zeros((ms, n + ms))
+            Ci = np.zeros((ms, m))
             Ci[:, :n] = np.concatenate([r.J for r in ineq])
             Ci[:, n:] = np.eye(ms)
-            H[n:, n:] = np.diag(np.concatenate([r.weights for r in ineq]) + reg.mean())
+            H.flat[n * m + n::m + 1] = np.concatenate([r.weights for r in ineq]) + np.mean(reg)
             blocks.append(Ci)
             cl += [r.lower for r in ineq]
             cu += [r.upper for r in ineq]
@@ -146,7 +148,7 @@ class QpSolver:
             target = locked @ previous
             cl.append(target)
             cu.append(target)
-        C = np.concatenate(blocks) if blocks else np.zeros((0, n + ms))
+        C = np.concatenate(blocks) if blocks else np.zeros((0, m))
         cl = np.concatenate(cl) if cl else np.zeros(0)
         cu = np.concatenate(cu) if cu else np.zeros(0)
         if self.direct:
@@ -160,7 +162,7 @@ class QpSolver:
         sense[n + n_ineq:] = _EQUALITY
         x, _, exitflag, _ = self._daqp(H, f, C, np.concatenate([ub, cu]),
                                        np.concatenate([lb, cl]), sense)
-        return x[:n] if exitflag >= 1 else None
+        return x[:n] if exitflag >= 1 and np.isfinite(x).all() else None
 
     def _solve_qpsolvers(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, cl: np.ndarray,
                          cu: np.ndarray, n_ineq: int, lb: np.ndarray, ub: np.ndarray,

@@ -6,7 +6,11 @@ solved in the null space of all higher levels (null-space projection, Siciliano-
 joint-weighted coordinates ``qdot = W_q^{-1/2} u`` so the minimum-norm part minimises
 ``qdot^T W_q qdot``. Each level's damped pseudo-inverse ``V diag(s / (s^2 + lambda^2)) U^T``
 uses variable damping (Maciejewski/Nakamura): ``lambda^2 = lambda_max^2 (1 - (s_min/eps)^2)``
-when the smallest relevant singular value ``s_min`` drops below ``eps``, else 0.
+when the smallest non-zero singular value ``s_min`` (of the projected, weighted Jacobian)
+drops below ``eps``, else 0; singular values below ``rank_tolerance`` (relative) are directions
+already fixed by higher levels or structurally absent, truncated rather than damped. ``s_min``,
+``eps`` and ``lambda`` are in unit-weight task units (divided by the level's largest
+sqrt(weight)).
 Inequality rows are handled by a small active-set loop: violated rows become equalities at their
 bound and the cascade is solved again. Finally qdot is scaled uniformly so no joint exceeds its
 velocity limit nor crosses a position limit within the cycle.
@@ -14,10 +18,12 @@ velocity limit nor crosses a position limit within the cycle.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from time import perf_counter
 
 import numpy as np
+from scipy.linalg.lapack import dgesdd as _gesdd
 
 from .problem import ConstraintRows, SolverResult, group_levels, velocity_bounds
 
@@ -27,8 +33,8 @@ __all__ = ['WdlsSolver']
 class WdlsSolver:
     """Prioritised weighted damped least squares with uniform velocity saturation."""
 
-    def __init__(self, *, joint_weights: float | np.ndarray = 1.0, epsilon: float = 0.05,
-                 max_damping: float = 0.1, rank_tolerance: float = 1e-9,
+    def __init__(self, *, joint_weights: float | np.ndarray = 1.0, epsilon: float = 0.02,
+                 max_damping: float = 0.05, rank_tolerance: float = 1e-9,
                  position_limit_gain: float = 0.5, inequality_iterations: int = 4) -> None:
         """``joint_weights`` (scalar or per joint, > 0) define the joint-space metric W_q;
         ``epsilon``/``max_damping`` the variable damping; ``position_limit_gain`` in (0, 1] the
@@ -46,11 +52,12 @@ class WdlsSolver:
         n = q.shape[0]
         result = SolverResult(np.zeros(n), tasks=[r.task for r in rows])
         levels = group_levels(rows)
-        scale = 1.0 / np.sqrt(np.broadcast_to(np.asarray(self.joint_weights, dtype=float), (n,)))
+        weights = np.asarray(self.joint_weights, dtype=float)
+        scale = None if np.all(weights == 1.0) else np.broadcast_to(1.0 / np.sqrt(weights), (n,))
         active: dict[int, np.ndarray] = {}  # id(row) -> bound targets (nan = inactive)
         inequalities = [r for level in levels for r in level if r.inequality]
         for _ in range(self.inequality_iterations):
-            qdot = scale * self._cascade(levels, scale, active, result)
+            qdot = self._cascade(levels, n, scale, active, result)
             changed = False
             for r in inequalities:
                 y = r.J @ qdot
@@ -61,34 +68,32 @@ class WdlsSolver:
                     changed = True
             if not changed:
                 break
-        result.infeasible = any(
-            ((r.J @ qdot < r.lower - 1e-6) | (r.J @ qdot > r.upper + 1e-6)).any()
-            for r in inequalities)
+        for r in inequalities:
+            y = r.J @ qdot
+            result.infeasible |= bool(np.maximum(r.lower - y, y - r.upper).max() > 1e-6)
         if not np.isfinite(qdot).all():
-            qdot[:] = 0.0
+            qdot = np.zeros(n)
             result.infeasible = True
         lo, hi = velocity_bounds(q, lower, upper, velocity_limit, dt, self.position_limit_gain)
         bound = np.where(qdot > 0.0, np.maximum(hi, 0.0), np.minimum(lo, 0.0))
         exceeded = np.abs(qdot) > np.abs(bound)
-        factor = float(np.divide(bound, qdot, out=np.ones(n), where=exceeded).min(initial=1.0))
-        if factor < 1.0:
-            qdot *= max(factor, 0.0)
+        if exceeded.any():
+            qdot = qdot * max(float((bound[exceeded] / qdot[exceeded]).min()), 0.0)
             result.saturated = True
         result.qdot = qdot
         result.set_status()
         result.solve_time = perf_counter() - t0
         return result
 
-    def _cascade(self, levels: list[list[ConstraintRows]], scale: np.ndarray,
+    def _cascade(self, levels: list[list[ConstraintRows]], n: int, scale: np.ndarray | None,
                  active: dict[int, np.ndarray], result: SolverResult) -> np.ndarray:
-        """One pass over the priority levels; returns u (qdot = scale * u)."""
-        n = scale.shape[0]
-        u = np.zeros(n)
+        """One pass over the priority levels; returns qdot."""
+        u = np.zeros(n)  # qdot = scale * u
         projector: np.ndarray | None = None  # None = identity
         free = n
-        result.min_singular_value, result.damping, result.singular = float('inf'), 0.0, False
+        result.min_singular_value, result.damping, result.singular = math.inf, 0.0, False
         eps, tol = self.epsilon, self.rank_tolerance
-        for level in levels:
+        for k, level in enumerate(levels):
             parts = []
             for r in level:
                 if not r.inequality:
@@ -99,27 +104,36 @@ class WdlsSolver:
                         parts.append((r.J[mask], active[id(r)][mask], r.weights[mask]))
             if not parts:
                 continue
-            J, desired, weights = (np.concatenate(x) for x in zip(*parts))
+            if len(parts) == 1:
+                J, desired, weights = parts[0]
+            else:
+                J, desired, weights = (np.concatenate(x) for x in zip(*parts))
             sw = np.sqrt(weights)
-            A = (sw[:, None] * J) * scale
-            b = sw * desired - A @ u
-            Ap = A if projector is None else A @ projector
-            U, s, Vt = np.linalg.svd(Ap, full_matrices=False)
-            relevant = min(s.shape[0], free)
-            s_min = float(s[relevant - 1])
-            lam2 = 0.0
+            unit = float(sw.max())  # damping thresholds are in unit-weight task units
+            A = sw[:, None] * J if scale is None else (sw[:, None] * J) * scale
+            b = sw * desired
+            if k:
+                b -= A @ u
+            U, s, Vt, info = _gesdd(A if projector is None else A @ projector,
+                                    compute_uv=1, full_matrices=0)
+            if info:  # non-finite rows: keep the higher levels' solution
+                result.infeasible = True
+                break
+            rank = int(np.count_nonzero(s > tol * max(1.0, float(s[0]))))
+            if not rank:  # fully determined by higher levels
+                continue
+            s_min = float(s[rank - 1]) / unit
+            lam = 0.0
             if s_min < eps:
-                lam2 = self.max_damping ** 2 * (1.0 - (s_min / eps) ** 2)
+                lam = self.max_damping * math.sqrt(1.0 - (s_min / eps) ** 2)
                 result.singular = True
             result.min_singular_value = min(result.min_singular_value, s_min)
-            result.damping = max(result.damping, float(np.sqrt(lam2)))
-            rank = int(np.count_nonzero(s > tol))
-            gain = np.zeros_like(s)
-            gain[:rank] = s[:rank] / (s[:rank] ** 2 + lam2)
-            u += Vt.T @ (gain * (U.T @ b))
+            result.damping = max(result.damping, lam)
+            s = s[:rank]
+            u += Vt[:rank].T @ (s / (s * s + (lam * unit) ** 2) * (U[:, :rank].T @ b))
+            free -= rank
+            if free <= 0 or k == len(levels) - 1:
+                break
             basis = Vt[:rank]
             projector = (np.eye(n) if projector is None else projector) - basis.T @ basis
-            free -= rank
-            if free <= 0:
-                break
-        return u
+        return u if scale is None else scale * u

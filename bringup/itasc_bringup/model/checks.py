@@ -1,0 +1,294 @@
+"""Cross-reference checks of an iTaSC application model, before anything starts (paper §3.3's
+lesson: a newcomer must be able to change a model with confidence).
+
+What a schema cannot see: URDF files that do not exist or do not load, link names the URDF does
+not have (checked against the kinematic model Pinocchio builds), object frames and joints that no
+robot or object has, duplicate names, events the Running sub-FSM waits for that nobody raises,
+configurations, Tasks and Monitors that are not defined, Drivers and Sensors of unknown robots and
+objects. Every error is a :class:`ModelError` naming the file (the included one, if the faulty part
+came from an include), the path inside it and what was expected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import pinocchio as pin
+from itasc_core.composition.loader import ModelError, format_loc, source_of
+from itasc_core.itasc.robot import Robot as RobotModel
+
+from .locations import config_dirs
+from .schema import Application, Program
+
+__all__ = ['check', 'load_robot', 'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED']
+
+Loc = tuple[Any, ...]
+
+SOLVER_EVENTS = ('e_solver_ok', 'e_solver_singular', 'e_solver_infeasible', 'e_solver_saturated')
+#: What a Monitor may watch of a Task (TaskState fields, and the setpoint's progress) and of the Solver.
+TASK_QUANTITIES = ('output', 'setpoint', 'error', 'error_norm', 'progress')
+SOLVER_QUANTITIES = ('solve_time', 'min_singular_value', 'damping')
+#: Entity names of the Constraint-based program composite that Tasks and Monitors may not take.
+RESERVED = ('Scene', 'Solver')
+
+
+@lru_cache(maxsize=32)
+def load_robot(name: str, urdf: str, base: str) -> RobotModel:
+    """The kinematic model of a robot (cached: checks and transform both need it)."""
+    return RobotModel(name, urdf, base=base)
+
+
+@dataclass
+class _Where:
+    """Turns a location in the loaded tree into the file and path a ModelError names."""
+
+    sources: dict[Loc, Path]
+    root: Loc
+
+    def error(self, loc: Loc, message: str) -> ModelError:
+        path, inner = source_of(self.root + loc, self.sources)
+        return ModelError(str(path), format_loc(inner), message)
+
+    def file(self, loc: Loc) -> Path:
+        return source_of(self.root + loc, self.sources)[0]
+
+
+def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('application',)) -> Application:
+    """Check ``app``; raise the first :class:`ModelError`. Returns the application with every
+    robot's URDF reference resolved to an absolute path."""
+    where = _Where(sources, root)
+    program = app.program
+    _unique(where, [('program', 'robots', i, 'name') for i in range(len(program.robots))]
+            + [('program', 'objects', i, 'name') for i in range(len(program.objects))],
+            [r.name for r in program.robots] + [o.name for o in program.objects], 'robot or object',
+            reserved=('world',))
+    robots = {}
+    for i, robot in enumerate(program.robots):
+        robots[robot.name] = _robot(where, ('program', 'robots', i), robot)
+    resolved = app.model_copy(deep=True)
+    for robot in resolved.program.robots:
+        robot.urdf = robots[robot.name][0]
+    joints = {name: list(model.joint_names) for name, (_, model) in robots.items()}
+    _objects(where, program)
+    _tasks(where, program, robots={r.name: r for r in program.robots}, models={n: m for n, (_, m) in robots.items()},
+           joints=[j for js in joints.values() for j in js])
+    _monitors(where, program)
+    _configurations(where, program)
+    _running(where, program)
+    _solver(where, program, [j for js in joints.values() for j in js])
+    _drivers(where, app, joints)
+    _sensors(where, app)
+    return resolved
+
+
+def _unique(where: _Where, locs: list[Loc], names: list[str], what: str, *, reserved: Iterable[str] = ()) -> None:
+    seen: set[str] = set()
+    for loc, name in zip(locs, names):
+        if name in seen:
+            raise where.error(loc, f"duplicate {what} name '{name}'")
+        if name in reserved:
+            raise where.error(loc, f"'{name}' is reserved; choose another {what} name")
+        seen.add(name)
+
+
+# -- robots and objects -------------------------------------------------------------------------------
+
+def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
+    urdf = _find_urdf(where.file(loc + ('urdf',)).parent, robot.urdf)
+    if urdf is None:
+        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' not found (relative to this file, "
+                          'or under config/robots)')
+    try:
+        model = load_robot(robot.name, str(urdf), robot.base)
+    except (ValueError, RuntimeError) as err:
+        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' cannot be loaded: {err}") from None
+    links = [f.name for f in model.model.frames if f.type == pin.FrameType.BODY]
+    _unique(where, [loc + ('frames', k, 'name') for k in range(len(robot.frames))],
+            [f.name for f in robot.frames], f"frame of robot '{robot.name}'")
+    for k, frame in enumerate(robot.frames):
+        if frame.link not in links:
+            raise where.error(loc + ('frames', k, 'link'),
+                              f"robot '{robot.name}' has no link '{frame.link}'; links: {links}")
+        if frame.name in links:
+            raise where.error(loc + ('frames', k, 'name'), f"'{frame.name}' is already a link of '{robot.name}'")
+    return str(urdf), model
+
+
+def _find_urdf(directory: Path, reference: str) -> Path | None:
+    candidates = [directory / reference] + [d / 'robots' / reference for d in config_dirs()]
+    return next((c.resolve() for c in candidates if c.is_file()), None)
+
+
+def _objects(where: _Where, program: Program) -> None:
+    for i, obj in enumerate(program.objects):
+        _unique(where, [('program', 'objects', i, 'frames', k, 'name') for k in range(len(obj.frames))],
+                [f.name for f in obj.frames], f"frame of object '{obj.name}'", reserved=('origin',))
+
+
+def frames_of(program: Program, models: dict[str, RobotModel]) -> dict[str, list[str]]:
+    """Every frame a Task may name, by owner: ``robot/frame``, ``object/frame``, ``object``, ``world``."""
+    frames: dict[str, list[str]] = {'world': ['']}
+    for robot in program.robots:
+        links = [f.name for f in models[robot.name].model.frames if f.type == pin.FrameType.BODY]
+        frames[robot.name] = [f.name for f in robot.frames] + links
+    for obj in program.objects:
+        frames[obj.name] = ['', 'origin'] + [f.name for f in obj.frames]
+    return frames
+
+
+# -- tasks ----------------------------------------------------------------------------------------------
+
+def _tasks(where: _Where, program: Program, *, robots: dict, models: dict[str, RobotModel],
+           joints: list[str]) -> None:
+    _unique(where, [('program', 'tasks', i, 'name') for i in range(len(program.tasks))],
+            [t.name for t in program.tasks], 'task', reserved=RESERVED + tuple(f'Robot_{r}' for r in robots))
+    frames = frames_of(program, models)
+    for i, task in enumerate(program.tasks):
+        loc = ('program', 'tasks', i)
+        for end in ('o1', 'o2'):
+            address = getattr(task, end)
+            if address is None:
+                continue
+            owner, _, frame = address.partition('/')
+            if owner not in frames or frame not in frames[owner]:
+                known = [f'{o}/{f}' if f else o for o, fs in frames.items() for f in fs if f != 'origin']
+                raise where.error(loc + (end,), f"unknown frame '{address}'; frames: {known}")
+        if task.o1 is not None and task.o1 == task.o2:
+            raise where.error(loc + ('o2',), 'o1 and o2 must be different frames')
+        for k, joint in enumerate(task.joints or ()):
+            if joint not in joints:
+                raise where.error(loc + ('joints', k), f"unknown joint '{joint}'; joints: {joints}")
+
+
+# -- monitors, configurations, Running sub-FSM ---------------------------------------------------------------
+
+def _monitors(where: _Where, program: Program) -> None:
+    tasks = {t.name: t for t in program.tasks}
+    _unique(where, [('program', 'monitors', i, 'name') for i in range(len(program.monitors))],
+            [m.name for m in program.monitors], 'monitor', reserved=RESERVED + tuple(tasks))
+    for i, monitor in enumerate(program.monitors):
+        target, _, quantity = monitor.watch.partition('.')
+        quantity = quantity.split('[')[0]
+        loc = ('program', 'monitors', i, 'watch')
+        if target == 'Solver':
+            if quantity not in SOLVER_QUANTITIES:
+                raise where.error(loc, f"the Solver has no '{quantity}'; expected one of {list(SOLVER_QUANTITIES)}")
+        elif target not in tasks:
+            raise where.error(loc, f"unknown task '{target}'; expected a task {sorted(tasks)} or Solver")
+        elif quantity not in TASK_QUANTITIES:
+            raise where.error(loc, f"a task has no '{quantity}'; expected one of {list(TASK_QUANTITIES)}")
+        elif quantity == 'progress' and tasks[target].constraint == 'inequality':
+            raise where.error(loc, f"inequality task '{target}' has no setpoint, hence no progress")
+
+
+def _configurations(where: _Where, program: Program) -> None:
+    tasks = {t.name for t in program.tasks}
+    monitors = {m.name for m in program.monitors}
+    for name, targets in program.configurations.items():
+        for target, settings in targets.items():
+            loc = ('program', 'configurations', name, target)
+            if target in tasks:
+                if settings.controller is None:
+                    raise where.error(loc, "a configuration sets a task's controller, not a threshold")
+            elif target in monitors:
+                if settings.threshold is None:
+                    raise where.error(loc, "a configuration sets a monitor's threshold, not a controller")
+            else:
+                raise where.error(loc, f"unknown task or monitor '{target}'; tasks: {sorted(tasks)}, "
+                                  f'monitors: {sorted(monitors)}')
+    for k, name in enumerate(program.configure):
+        if name not in program.configurations:
+            raise where.error(('program', 'configure', k),
+                              f"unknown configuration '{name}'; known: {sorted(program.configurations)}")
+
+
+def raised_events(program: Program, robots: Iterable[str]) -> set[str]:
+    """Every event raised inside the Constraint-based program that its Coordinator can hear."""
+    events = {m.event for m in program.monitors} | set(SOLVER_EVENTS)
+    events |= {f'e_{r}_joints_missing' for r in robots}
+    if program.running is not None:
+        events |= {e for s in program.running.states.values() for e in s.raise_}
+    return events
+
+
+def _running(where: _Where, program: Program) -> None:
+    fsm = program.running
+    if fsm is None:
+        return
+    states = sorted(fsm.states)
+    if fsm.initial not in fsm.states:
+        raise where.error(('program', 'running', 'initial'), f"unknown state '{fsm.initial}'; states: {states}")
+    known = {'tasks': {t.name for t in program.tasks}, 'monitors': {m.name for m in program.monitors},
+             'configure': set(program.configurations)}
+    what = {'tasks': 'task', 'monitors': 'monitor', 'configure': 'configuration'}
+    for name, state in fsm.states.items():
+        for field, names in known.items():
+            for k, item in enumerate(getattr(state, field) or ()):
+                if item not in names:
+                    raise where.error(('program', 'running', 'states', name, field, k),
+                                      f"unknown {what[field]} '{item}'; known: {sorted(names)}")
+    events = raised_events(program, [r.name for r in program.robots])
+    for i, transition in enumerate(fsm.transitions):
+        loc = ('program', 'running', 'transitions', i)
+        for end, key in ((transition.source, 'from'), (transition.target, 'to')):
+            if end not in fsm.states:
+                raise where.error(loc + (key,), f"unknown state '{end}'; states: {states}")
+        for k, event in enumerate(transition.when):
+            if event not in events:
+                raise where.error(loc + ('when', k), f"event '{event}' is raised by nobody; raised: {sorted(events)}")
+
+
+# -- solver, drivers, sensors ---------------------------------------------------------------------------------
+
+def _solver(where: _Where, program: Program, joints: list[str]) -> None:
+    solver = program.solver
+    for joint in solver.joint_weights:
+        if joint not in joints:
+            raise where.error(('program', 'solver', 'joint_weights', joint), f"unknown joint '{joint}'; joints: {joints}")
+    if solver.kind == 'qp':
+        import qpsolvers
+        if solver.backend not in qpsolvers.available_solvers:
+            raise where.error(('program', 'solver', 'backend'), f"QP backend '{solver.backend}' is not "
+                              f'available; available: {qpsolvers.available_solvers}')
+
+
+def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> None:
+    driven: dict[str, int] = {}
+    for i, driver in enumerate(app.drivers):
+        loc = ('drivers', i)
+        if driver.robot not in joints:
+            raise where.error(loc + ('robot',), f"unknown robot '{driver.robot}'; robots: {sorted(joints)}")
+        if driver.robot in driven:
+            raise where.error(loc + ('robot',), f"robot '{driver.robot}' already has a driver (drivers[{driven[driver.robot]}])")
+        driven[driver.robot] = i
+        robot_joints = joints[driver.robot]
+        for joint in driver.initial:
+            if joint not in robot_joints:
+                raise where.error(loc + ('initial', joint), f"robot '{driver.robot}' has no joint '{joint}'; "
+                                  f'joints: {robot_joints}')
+        if driver.joints is not None:
+            for k, joint in enumerate(driver.joints):
+                if joint not in robot_joints:
+                    raise where.error(loc + ('joints', k), f"robot '{driver.robot}' has no joint '{joint}'; "
+                                      f'joints: {robot_joints}')
+            missing = [j for j in robot_joints if j not in driver.joints]
+            if missing or len(set(driver.joints)) != len(driver.joints):
+                raise where.error(loc + ('joints',), f'list every joint of the robot once (missing: {missing})')
+    for robot in joints:
+        if robot not in driven:
+            raise where.error(('drivers',), f"robot '{robot}' has no driver")
+
+
+def _sensors(where: _Where, app: Application) -> None:
+    objects = [o.name for o in app.program.objects]
+    sensed: set[str] = set()
+    for i, sensor in enumerate(app.sensors):
+        if sensor.object not in objects:
+            raise where.error(('sensors', i, 'object'), f"unknown object '{sensor.object}'; objects: {objects}")
+        if sensor.object in sensed:
+            raise where.error(('sensors', i, 'object'), f"object '{sensor.object}' already has a sensor")
+        sensed.add(sensor.object)

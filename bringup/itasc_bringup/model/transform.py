@@ -1,0 +1,260 @@
+"""From the iTaSC application model to the generic composition model the runtime executes (paper
+§4.2, Fig. 2: three levels of composition; §3 the Composition Pattern at each level).
+
+::
+
+    <application>                      rate; Drivers and Sensors, then the program, every tick
+      Driver_<robot>                   SimulatedRobot | Ros2ControlAdapter
+      Sensor_<object>                  PoseSensor
+      <program> (itasc)                Constraint-based program
+        Robot_<robot>                  RobotEntity: driver joint state -> model order
+        Scene                          SceneEntity: relations between the Tasks' object frames
+        <Task> ...                     Task composite: VKC, CO, SPG, CC, Rows
+        Solver                         SolverEntity: rows of all Tasks -> joint velocities
+        monitors, configurations (Monitor thresholds), Running sub-FSM
+
+The Running sub-FSM of the program becomes the program composite's: entering a state raises
+``e_<Task>_activate``/``_deactivate`` (its Scheduler switches Tasks), ``e_<monitor>_on``/``_off``
+(Monitors), ``e_<configuration>`` and the state's own events. A configuration's controller gains
+live in the Configurator of the Task they concern (paper §5.1: each composite's Configurator
+configures its own entities); the Task's Coordinator applies one when its parent raises
+``e_<configuration>``: a small Running sub-FSM of the Task, one state per configuration
+(paper Fig. 3: the Task's Coordinator commands ``e_high_accuracy_control`` to its Configurator).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import yaml
+from itasc_core.composition.model import (CompositeModel, ConnectionModel, EntityModel, MonitorModel,
+                                          RunningModel, SafetyModel)
+
+from .checks import SOLVER_QUANTITIES, load_robot
+from .schema import Application, Driver, Monitor, Program, Task
+
+__all__ = ['to_composition', 'KINDS']
+
+KINDS = {
+    'robot': 'itasc_core.itasc.entities.robot_entity:RobotEntity',
+    'scene': 'itasc_core.itasc.entities.scene_entity:SceneEntity',
+    'solver': 'itasc_core.itasc.entities.solver_entity:SolverEntity',
+    'vkc': 'itasc_tasks.entities.vkc_entity:VKCEntity',
+    'co': 'itasc_tasks.entities.constraint_output_entity:ConstraintOutputEntity',
+    'spg': 'itasc_tasks.entities.setpoint_generator_entity:SetpointGeneratorEntity',
+    'cc': 'itasc_tasks.entities.constraint_controller_entity:ConstraintControllerEntity',
+    'rows': 'itasc_tasks.entities.constraint_rows_entity:ConstraintRowsEntity',
+    'simulated': 'itasc_drivers.simulated_robot:SimulatedRobot',
+    'ros2_control': 'itasc_drivers.ros2_control_adapter:Ros2ControlAdapter',
+    'pose': 'itasc_drivers.pose_sensor:PoseSensor',
+}
+#: The Task composite's state before any configuration event (see the module docstring).
+AS_CONFIGURED = 'as_configured'
+EMERGENCY = SafetyModel(raise_to_parent=['e_emergency'])
+
+
+def to_composition(app: Application) -> CompositeModel:
+    """The composition model of a checked application (robot URDFs resolved to absolute paths)."""
+    program = app.program
+    robots = {r.name: r for r in program.robots}
+    drivers = [_driver(d, robots[d.robot], app.rate) for d in app.drivers]
+    sensors = [EntityModel(name=f'Sensor_{s.object}', kind=KINDS['pose'],
+                           parameters={'object': s.object, 'topic': s.topic}) for s in app.sensors]
+    connections = []
+    for d in app.drivers:
+        connections += [_connect(f'Driver_{d.robot}.joint_state', f'{program.name}.joint_state_{d.robot}'),
+                        _connect(f'{program.name}.command', f'Driver_{d.robot}.command')]
+    connections += [_connect(f'Sensor_{s.object}.pose', f'{program.name}.pose_{s.object}') for s in app.sensors]
+    return CompositeModel(name=app.name, rate=app.rate, entities=[*drivers, *sensors, _program(app)],
+                          connections=connections)
+
+
+def _connect(source: str, target: str) -> ConnectionModel:
+    return ConnectionModel.model_validate({'from': source, 'to': target})
+
+
+def _flow(value: dict[str, Any]) -> str:
+    """A YAML flow mapping: how the Scene's structured parameters are written."""
+    return yaml.safe_dump(value, default_flow_style=True, width=math.inf, sort_keys=False).strip()
+
+
+def _placement(item) -> dict[str, list[float]]:
+    return {'xyz': list(item.xyz), 'rpy': list(item.rpy)}
+
+
+# -- Application level ----------------------------------------------------------------------------
+
+def _driver(driver: Driver, robot, rate: float) -> EntityModel:
+    name = f'Driver_{driver.robot}'
+    if driver.kind == 'simulated':
+        return EntityModel(name=name, kind=KINDS['simulated'], parameters={
+            'robot': robot.name, 'urdf': robot.urdf, 'base': robot.base,
+            'initial_names': list(driver.initial) or [''],
+            'initial_positions': [float(v) for v in driver.initial.values()] or [0.0]})
+    suffix = 'joint_trajectory' if driver.interface == 'trajectory' else 'commands'
+    controller = driver.controller.strip('/')
+    return EntityModel(name=name, kind=KINDS['ros2_control'], parameters={
+        'robot': robot.name, 'joints': list(driver.joints), 'joint_states_topic': driver.joint_states,
+        'command_topic': driver.command_topic or f'/{controller}/{suffix}', 'interface': driver.interface,
+        'horizon': 2.0 / rate})
+
+
+# -- Constraint-based program -----------------------------------------------------------------------
+
+def _program(app: Application) -> CompositeModel:
+    program = app.program
+    tasks = program.tasks
+    robot_entities = [EntityModel(name=f'Robot_{r.name}', kind=KINDS['robot'],
+                                  parameters={'robot': r.name, 'urdf': r.urdf, 'base': r.base})
+                      for r in program.robots]
+    connections = [_connect(f'Robot_{r.name}.joint_state', f'Scene.joint_state_{r.name}') for r in program.robots]
+    for task in tasks:
+        if task.type == 'joint':
+            connections.append(_connect('Scene.joint_state', f'{task.name}.joint_state'))
+        else:
+            connections.append(_connect(f'Scene.relation_{task.name}', f'{task.name}.relation'))
+        connections.append(_connect(f'{task.name}.rows', 'Solver.rows'))
+    connections.append(_connect('Scene.joint_state', 'Solver.joint_state'))
+    exports = {f'joint_state_{r.name}': f'Robot_{r.name}.measured' for r in program.robots}
+    exports |= {f'pose_{s.object}': f'Scene.pose_{s.object}' for s in app.sensors}
+    exports['command'] = 'Solver.command'
+    monitor_settings = {name: {target: {'threshold': s.threshold} for target, s in targets.items()
+                               if s.threshold is not None}
+                        for name, targets in program.configurations.items()}
+    monitor_settings = {name: targets for name, targets in monitor_settings.items() if targets}
+    return CompositeModel(
+        name=program.name,
+        entities=[*robot_entities, _scene(app), *(_task(program, t) for t in tasks), _solver(app)],
+        connections=connections,
+        exports=exports,
+        configurations=monitor_settings,
+        configure=[c for c in program.configure if c in monitor_settings],
+        monitors=[_monitor(m) for m in program.monitors],
+        running=_running(program),
+        safety=EMERGENCY,
+    )
+
+
+def _scene(app: Application) -> EntityModel:
+    program = app.program
+    sensed = {s.object for s in app.sensors}
+    robots = [_flow({'name': r.name, 'urdf': r.urdf, 'base': r.base, **_placement(r),
+                     'frames': {f.name: {'link': f.link, **_placement(f)} for f in r.frames}})
+              for r in program.robots]
+    objects = [_flow({'name': o.name, **_placement(o), 'frames': {f.name: _placement(f) for f in o.frames},
+                      'sensed': o.name in sensed}) for o in program.objects]
+    relations = [_flow({'name': t.name, 'o1': t.o1, 'o2': t.o2}) for t in program.tasks if t.type != 'joint']
+    return EntityModel(name='Scene', kind=KINDS['scene'],
+                       parameters={'robots': robots, 'objects': objects or [''], 'relations': relations or ['']})
+
+
+def _solver(app: Application) -> EntityModel:
+    solver = app.program.solver
+    models = [load_robot(r.name, r.urdf, r.base) for r in app.program.robots]
+    joints = [j for m in models for j in m.joint_names]
+    limits = {key: [float(v) for m in models for v in getattr(m, key)] for key in ('lower', 'upper', 'velocity_limit')}
+    return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
+        'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
+        'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
+        'damping': solver.damping, 'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+
+
+def _monitor(monitor: Monitor) -> MonitorModel:
+    target, _, quantity = monitor.watch.partition('.')
+    if target == 'Solver' and quantity.split('[')[0] in SOLVER_QUANTITIES:
+        watch, field = 'Solver.status', quantity
+    elif quantity == 'progress':
+        watch, field = f'{target}.progress', 'data'
+    else:
+        watch, field = f'{target}.state', quantity
+    return MonitorModel(name=monitor.name, watch=watch, field=field, condition=monitor.condition,
+                        threshold=monitor.threshold, band=monitor.band, timeout=monitor.timeout, event=monitor.event,
+                        enabled=monitor.enabled, enable_on=[f'e_{monitor.name}_on'],
+                        disable_on=[f'e_{monitor.name}_off'])
+
+
+def _running(program: Program) -> RunningModel | None:
+    fsm = program.running
+    if fsm is None:
+        return None
+    states = {}
+    for name, state in fsm.states.items():
+        events = [f'e_{c}' for c in state.configure]
+        if state.tasks is not None:
+            events += [f"e_{t.name}_{'activate' if t.name in state.tasks else 'deactivate'}" for t in program.tasks]
+        if state.monitors is not None:
+            events += [f"e_{m.name}_{'on' if m.name in state.monitors else 'off'}" for m in program.monitors]
+        states[name] = {'raise': events + state.raise_}
+    return RunningModel.model_validate({
+        'initial': fsm.initial, 'states': states,
+        'transitions': [{'from': t.source, 'to': t.target, 'when': t.when} for t in fsm.transitions]})
+
+
+# -- Task -------------------------------------------------------------------------------------------
+
+def _task(program: Program, task: Task) -> CompositeModel:
+    t = task.name
+    equality = task.constraint == 'equality'
+    outputs = list(task.outputs or ()) or ['']
+    entities = [
+        EntityModel(name='VKC', kind=KINDS['vkc'], parameters={
+            'task': t, 'type': task.type, 'o1': task.o1 or 'world', 'o2': task.o2 or 'world',
+            'coordinates': task.coordinates, 'joints': list(task.joints or ()) or ['']}),
+        EntityModel(name='CO', kind=KINDS['co'], parameters={'task': t, 'outputs': outputs}),
+    ]
+    connections = [_connect('VKC.features', 'CO.features'), _connect('CO.output', 'CC.output'),
+                   _connect('CO.output', 'Rows.output'), _connect('CC.control', 'Rows.control')]
+    if equality:
+        entities.append(EntityModel(name='SPG', kind=KINDS['spg'], parameters=_setpoint(task, outputs)))
+        connections += [_connect('VKC.features', 'SPG.features'), _connect('SPG.setpoint', 'CC.setpoint')]
+    c = task.controller
+    entities += [
+        EntityModel(name='CC', kind=KINDS['cc'], parameters={
+            'task': t, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd, 'max_output': c.max_output,
+            'inequality': not equality, 'lower': [float(v) for v in task.d_min or [-math.inf]],
+            'upper': [float(v) for v in task.d_max or [math.inf]]}),
+        EntityModel(name='Rows', kind=KINDS['rows'], parameters={
+            'task': t, 'priority': task.priority, 'weights': [float(w) for w in task.weights],
+            'inequality': not equality}),
+    ]
+    exports = {'joint_state': 'VKC.joint_state'} if task.type == 'joint' else {'relation': 'VKC.relation'}
+    exports |= {'rows': 'Rows.rows', 'state': 'Rows.state'}
+    if equality:
+        exports['progress'] = 'SPG.progress'
+    configurations = {name: {'CC': targets[t].controller.model_dump(exclude_none=True)}
+                      for name, targets in program.configurations.items()
+                      if t in targets and targets[t].controller is not None}
+    return CompositeModel(name=t, entities=entities, connections=connections, exports=exports,
+                          configurations=configurations,
+                          configure=[name for name in program.configure if name in configurations],
+                          running=_configuration_switch(configurations), safety=EMERGENCY)
+
+
+def _setpoint(task: Task, outputs: list[str]) -> dict[str, Any]:
+    sp = task.setpoint
+    params: dict[str, Any] = {'task': task.name, 'outputs': outputs}
+    if sp is None:
+        return params | {'kind': 'hold'}
+    params |= {'kind': sp.kind, 'duration': sp.duration, 'topic': sp.topic or ''}
+    if sp.pose is not None:
+        params |= {'target': [*map(float, sp.pose.xyz), *map(float, sp.pose.rpy)], 'target_is_pose': True}
+    elif sp.value is not None:
+        params['target'] = [float(v) for v in sp.value]
+    for key in ('max_velocity', 'max_acceleration', 'amplitude', 'offset', 'phase'):
+        if getattr(sp, key) is not None:
+            params[key] = [float(v) for v in getattr(sp, key)]
+    if sp.period is not None:
+        params['period'] = sp.period
+    return params
+
+
+def _configuration_switch(configurations: dict[str, Any]) -> RunningModel | None:
+    """The Task's Running sub-FSM: on the parent's ``e_<configuration>``, enter that state, which
+    raises ``e_<configuration>`` in the Task, where its Configurator applies it."""
+    if not configurations:
+        return None
+    states = {AS_CONFIGURED: {}} | {name: {'raise': [f'e_{name}']} for name in configurations}
+    transitions = [{'from': s, 'to': name, 'when': [f'e_{name}']}
+                   for name in configurations for s in states if s != name]
+    return RunningModel.model_validate({'initial': AS_CONFIGURED, 'states': states, 'transitions': transitions})

@@ -1,0 +1,98 @@
+"""A stand-in for an existing ROS 2 driver that speaks only standard messages, as ros2_control's
+joint_state_broadcaster and a JointGroupVelocityController (or JointGroupPositionController) do:
+it publishes ``sensor_msgs/JointState`` on ``joint_states`` — joints in a different order than the
+controller's, plus one joint nobody controls (a gripper finger) — and integrates the
+``std_msgs/Float64MultiArray`` it receives on ``/<controller>/commands`` (velocities, or
+positions with ``--interface position``), in the controller's joint order.
+
+Used to test the Ros2ControlAdapter Driver (paper §4.2: the same program on other hardware by
+swapping the Driver). Run: ``fake_ros2_control [--controller velocity_controller] [--rate 200]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import rclpy
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+__all__ = ['FakeRos2Control', 'main']
+
+PANDA = [f'panda_joint{i}' for i in range(1, 8)]
+PANDA_READY = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
+
+
+class FakeRos2Control(Node):
+    """joint_state_broadcaster + a joint group controller, kinematically simulated."""
+
+    def __init__(self, *, joints: list[str], initial: list[float], extra_joint: str, controller: str,
+                 interface: str, rate: float, joint_states: str) -> None:
+        super().__init__('fake_ros2_control')
+        self.joints = list(joints)
+        self.positions = dict(zip(joints, initial))
+        self.velocities = dict.fromkeys(joints, 0.0)
+        self.extra_joint = extra_joint
+        self.interface = interface
+        self.commands_received = 0
+        self._publisher = self.create_publisher(JointState, joint_states, 10)
+        self.create_subscription(Float64MultiArray, f'/{controller}/commands', self._on_command, 10)
+        self._last = time.monotonic()
+        self.create_timer(1.0 / rate, self._step)
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) != len(self.joints):
+            self.get_logger().error(f'command of {len(msg.data)} values for {len(self.joints)} joints ignored')
+            return
+        self.commands_received += 1
+        if self.interface == 'velocity':
+            self.velocities = dict(zip(self.joints, msg.data))
+        else:
+            self.positions = dict(zip(self.joints, msg.data))
+
+    def _step(self) -> None:
+        now = time.monotonic()
+        dt, self._last = now - self._last, now
+        if self.interface == 'velocity':
+            for joint, velocity in self.velocities.items():
+                self.positions[joint] += velocity * dt
+        order = list(reversed(self.joints))  # not the controller's order
+        msg = JointState(name=order + [self.extra_joint],
+                         position=[self.positions[j] for j in order] + [0.04],
+                         velocity=[self.velocities[j] for j in order] + [0.0])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._publisher.publish(msg)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--joints', default=','.join(PANDA))
+    parser.add_argument('--initial', default=','.join(map(str, PANDA_READY)))
+    parser.add_argument('--extra-joint', default='panda_finger_joint1')
+    parser.add_argument('--controller', default='velocity_controller')
+    parser.add_argument('--interface', default='velocity', choices=('velocity', 'position'))
+    parser.add_argument('--rate', type=float, default=200.0)
+    parser.add_argument('--joint-states', default='/joint_states')
+    args = parser.parse_args(argv)
+    joints = args.joints.split(',')
+    initial = [float(v) for v in args.initial.split(',')]
+    if len(initial) != len(joints):
+        parser.error(f'{len(initial)} initial positions for {len(joints)} joints')
+    rclpy.init()
+    node = FakeRos2Control(joints=joints, initial=initial, extra_joint=args.extra_joint,
+                           controller=args.controller, interface=args.interface, rate=args.rate,
+                           joint_states=args.joint_states)
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

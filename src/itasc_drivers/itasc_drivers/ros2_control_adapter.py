@@ -1,0 +1,124 @@
+"""Ros2ControlAdapter: a Driver (paper §4.1 "Drivers", §4.2 "Application") that couples the
+constraint-based program to an existing ROS 2 driver, e.g. ros2_control's
+joint_state_broadcaster and a JointGroupVelocityController (or position controller, or a
+JointTrajectoryController).
+
+* reads ``sensor_msgs/JointState`` on ``joint_states_topic``: joints mapped by name, any order,
+  joints it does not drive (a gripper) ignored; hands them on as ``joint_state``
+  (``JointPositions(<robot>)``);
+* takes the Solver's ``command`` (``JointVelocities(program)``), picks its ``joints`` by name and
+  writes to ``command_topic``, in the order of ``joints``, per ``interface``:
+
+  - ``velocity``: ``std_msgs/Float64MultiArray`` of velocities (``<controller>/commands``);
+  - ``position``: ``std_msgs/Float64MultiArray`` of positions, integrating the velocities from
+    the measured positions;
+  - ``trajectory``: ``trajectory_msgs/JointTrajectory``, one point ``horizon`` seconds ahead.
+
+On disengage and in Safety it commands zero velocity (velocity) or holds the measured position.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Duration
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from itasc_core.communication.ports import PortSpec
+from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.itasc.entities.robot_entity import joint_positions
+from itasc_core.itasc.entities.solver_entity import PROGRAM_VELOCITIES
+
+__all__ = ['Ros2ControlAdapter']
+
+INTERFACES = ('velocity', 'position', 'trajectory')
+
+
+class Ros2ControlAdapter(FunctionalEntity):
+    """joint_states in; Float64MultiArray or JointTrajectory commands out, joints by name."""
+
+    PARAMETERS = {
+        'robot': 'robot',
+        'joints': [''],
+        'joint_states_topic': '/joint_states',
+        'command_topic': '/velocity_controller/commands',
+        'interface': 'velocity',
+        'horizon': 0.1,
+    }
+
+    @classmethod
+    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+        return [
+            PortSpec(name='command', direction='input', msg_type=JointState, type='joint_velocities',
+                     semantics=PROGRAM_VELOCITIES),
+            PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
+                     semantics=joint_positions(params['robot'])),
+        ]
+
+    def validate_parameters(self, params: dict[str, Any]) -> str | None:
+        if params['interface'] not in INTERFACES:
+            return f"interface must be one of {INTERFACES}, got {params['interface']!r}"
+        if not [j for j in params['joints'] if j] or params['horizon'] <= 0:
+            return 'joints must name the controller joints, in its order, and horizon > 0'
+        return None
+
+    def configure(self, params: dict[str, Any]) -> None:
+        reason = self.validate_parameters(params)
+        if reason:
+            raise ValueError(f'{self.entity_name}: {reason}')
+        self.joints = [j for j in params['joints'] if j]
+        self.interface = params['interface']
+        self.horizon = params['horizon']
+        if getattr(self, '_state_sub', None) is not None:  # re-configured: new topics
+            self.destroy_subscription(self._state_sub)
+            self.destroy_publisher(self._publisher)
+        self._state_sub = self.create_subscription(JointState, params['joint_states_topic'], self._on_state, 10)
+        msg_type = JointTrajectory if self.interface == 'trajectory' else Float64MultiArray
+        self._publisher = self.create_publisher(msg_type, params['command_topic'], 10)
+        self.measured: np.ndarray | None = None
+        self._target: np.ndarray | None = None
+        self._last_t: float | None = None
+
+    def _on_state(self, msg: JointState) -> None:
+        by_name = dict(zip(msg.name, msg.position))
+        if all(j in by_name for j in self.joints):
+            self.measured = np.array([by_name[j] for j in self.joints], dtype=float)
+
+    def update(self, t: float) -> None:
+        dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
+        self._last_t = t
+        if self.measured is None:
+            return  # nothing to report, nothing to command before the driver reported
+        state = JointState(name=self.joints, position=self.measured.tolist())
+        state.header.stamp = self.get_clock().now().to_msg()
+        self.outputs['joint_state'].write(state)
+        command = self.inputs['command'].latest
+        velocity = np.zeros(len(self.joints))
+        if command is not None:
+            by_name = dict(zip(command.name, command.velocity))
+            velocity = np.array([by_name.get(j, 0.0) for j in self.joints], dtype=float)
+        self._send(np.where(np.isfinite(velocity), velocity, 0.0), dt)
+
+    def _send(self, velocity: np.ndarray, dt: float) -> None:
+        if self.interface == 'velocity':
+            self._publisher.publish(Float64MultiArray(data=velocity.tolist()))
+            return
+        if self._target is None or not velocity.any():
+            self._target = self.measured.copy()
+        if self.interface == 'position':
+            self._target = self._target + velocity * dt
+            self._publisher.publish(Float64MultiArray(data=self._target.tolist()))
+            return
+        seconds = int(self.horizon)
+        point = JointTrajectoryPoint(positions=(self.measured + velocity * self.horizon).tolist(),
+                                     velocities=velocity.tolist(),
+                                     time_from_start=Duration(sec=seconds, nanosec=int((self.horizon - seconds) * 1e9)))
+        self._publisher.publish(JointTrajectory(joint_names=self.joints, points=[point]))
+
+    def disengage(self) -> None:
+        if self.measured is not None:
+            self._target = None
+            self._send(np.zeros(len(self.joints)), 0.0)

@@ -1,0 +1,125 @@
+"""SimulatedRobot: a Driver (paper §4.1 "Drivers") that simulates a robot kinematically.
+
+Every tick of the program it integrates the commanded joint velocities over the time since the
+previous tick (so at the program rate) on the robot's kinematic model (a mobile base moves in
+its own frame, as the Solver commands it), within the joint velocity and position limits of the
+URDF, and publishes the joint state (``sensor_msgs/JointState`` with names, positions and the
+applied velocities). Input ``command``: the Solver's ``JointVelocities(program)``, from which it
+takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)``.
+
+``main()`` runs one standalone, as its own process, on plain topics.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+import rclpy
+from sensor_msgs.msg import JointState
+
+from itasc_core.communication.ports import PortSpec
+from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.entity import CompositeContext
+from itasc_core.itasc.entities.robot_entity import joint_positions
+from itasc_core.itasc.entities.solver_entity import PROGRAM_VELOCITIES
+from itasc_core.itasc.robot import Robot
+
+__all__ = ['SimulatedRobot', 'main']
+
+
+class SimulatedRobot(FunctionalEntity):
+    """Integrates commanded joint velocities; publishes the joint state."""
+
+    PARAMETERS = {
+        'robot': 'robot',
+        'urdf': '',
+        'base': 'fixed',
+        'initial_names': [''],
+        'initial_positions': [0.0],
+    }
+
+    @classmethod
+    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+        return [
+            PortSpec(name='command', direction='input', msg_type=JointState, type='joint_velocities',
+                     semantics=PROGRAM_VELOCITIES),
+            PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
+                     semantics=joint_positions(params['robot'])),
+        ]
+
+    def configure(self, params: dict[str, Any]) -> None:
+        if getattr(self, 'robot', None) is not None:
+            return  # the simulated world keeps its state across re-configuration
+        self.robot = Robot(params['robot'], params['urdf'], base=params['base'])
+        self.robot.set_positions([n for n in params['initial_names'] if n], params['initial_positions'])
+        self.robot.set_position_vector(self._within_limits(self.robot.positions))
+        self.velocity = np.zeros(self.robot.nv)
+        self._last_t: float | None = None
+
+    def _within_limits(self, positions: np.ndarray) -> np.ndarray:
+        return np.clip(positions, self.robot.lower, self.robot.upper)
+
+    def update(self, t: float) -> None:
+        dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
+        self._last_t = t
+        command = self.inputs['command'].latest
+        velocity = np.zeros(self.robot.nv)
+        if command is not None:
+            by_name = dict(zip(command.name, command.velocity))
+            velocity = np.array([by_name.get(n, 0.0) for n in self.robot.joint_names], dtype=float)
+            velocity = np.where(np.isfinite(velocity), velocity, 0.0)
+            velocity = np.clip(velocity, -self.robot.velocity_limit, self.robot.velocity_limit)
+        if dt > 0.0:
+            self.robot.integrate(velocity, dt)
+            self.robot.set_position_vector(self._within_limits(self.robot.positions))
+        self.velocity = velocity
+        self._publish()
+
+    def _publish(self) -> None:
+        msg = JointState(name=list(self.robot.joint_names), position=self.robot.positions.tolist(),
+                         velocity=self.velocity.tolist())
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.outputs['joint_state'].write(msg)
+
+    def disengage(self) -> None:
+        self.velocity = np.zeros(self.robot.nv)
+        self._publish()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``simulated_robot --urdf panda.urdf [--robot panda] [--rate 100] [--initial j=v,...]``:
+    publishes on ``<namespace>/<robot>/joint_state``, takes velocities (JointState) from
+    ``--command-topic``."""
+    parser = argparse.ArgumentParser(description='A kinematically simulated robot (iTaSC Driver).')
+    parser.add_argument('--urdf', required=True)
+    parser.add_argument('--robot', default='robot')
+    parser.add_argument('--base', default='fixed', choices=('fixed', 'planar', 'free_flyer'))
+    parser.add_argument('--rate', type=float, default=100.0)
+    parser.add_argument('--initial', default='', help='initial positions: joint=value,joint=value')
+    parser.add_argument('--namespace', default='/sim')
+    parser.add_argument('--command-topic', default='/sim/command')
+    args = parser.parse_args(argv)
+    initial = dict(item.split('=') for item in args.initial.split(',') if item)
+    rclpy.init()
+    node = SimulatedRobot(args.robot, composite=CompositeContext(name='sim', namespace=args.namespace),
+                          parameters={'robot': args.robot, 'urdf': args.urdf, 'base': args.base,
+                                      'initial_names': list(initial) or [''],
+                                      'initial_positions': [float(v) for v in initial.values()] or [0.0]})
+    node.inputs['command'].connect(args.command_topic)
+    start = time.monotonic()
+    node.create_timer(1.0 / args.rate, lambda: node.update(time.monotonic() - start))
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

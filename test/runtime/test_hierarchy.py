@@ -1,0 +1,196 @@
+"""The Composition Pattern runtime with real rclpy nodes over real DDS (issue: runtime tests 1-4,
+6, 7): life-cycle order, Scheduler order, Stop, Safety, semantic checks, run-time composition."""
+
+from __future__ import annotations
+
+import pytest
+
+import test_support_probes as probes
+from hierarchy_harness import Hierarchy
+
+PROBE = 'test_support_probes:OrderProbe'
+
+
+def task(name: str, **probe_params) -> dict:
+    return {
+        'name': name,
+        'entities': [
+            {'name': 'first', 'kind': PROBE, 'parameters': probe_params},
+            {'name': 'second', 'kind': PROBE},
+        ],
+    }
+
+
+def model(**program_extra) -> dict:
+    """root { program { T1 { 2 FEs }, T2 { 2 FEs }, 1 FE }, 1 FE }: three levels."""
+    program = {'name': 'program', 'entities': [task('T1'), task('T2'), {'name': 'mix', 'kind': PROBE}]}
+    program.update(program_extra)
+    return {'name': 'root', 'rate': 200, 'entities': [program, {'name': 'plant', 'kind': PROBE}]}
+
+
+CONFIGURE_TO_RUNNING = [
+    'Active.Configure.Configuring.DeployEntities',
+    'Active.Configure.Configuring.ConfigureEntities',
+    'Active.Configure.Configured.ConnectEntities',
+    'Active.Configure.Configured.NotifyConfigured',
+    'Active.Start.Starting',
+    'Active.Start.Started',
+    'Active.Run.PreRunning',
+    'Active.Run.Running',
+]
+STOP = [
+    'Active.Stop.Stopping',
+    'Active.Stop.Stopped.Disengage',
+    'Active.Stop.Stopped.CleanupComputation',
+    'Active.Stop.Stopped.Cleanup',
+    'Active.Stop.Stopped.NotifyStopped',
+]
+COMPOSITES = ('root', 'program', 'T1', 'T2')
+
+
+@pytest.fixture
+def hierarchy(request):
+    h = Hierarchy(getattr(request, 'param', None) or model())
+    yield h
+    h.close()
+
+
+def all_running(h: Hierarchy) -> bool:
+    return all(h.coordinators.get(c) is not None and h.state(c).startswith('Active.Run.Running')
+               for c in COMPOSITES)
+
+
+def first_time(h: Hierarchy, composite: str, state: str) -> float:
+    return next(t for t, s in h.stamps[composite] if s == state)
+
+
+def test_hierarchy_reaches_running_in_the_papers_order(hierarchy):
+    hierarchy.start()
+    assert hierarchy.spin_until(lambda: all_running(hierarchy)), {c: hierarchy.state(c) for c in hierarchy.coordinators}
+    for composite in COMPOSITES:
+        assert hierarchy.states(composite) == CONFIGURE_TO_RUNNING, composite
+    # -ed states of a parent only after every child reported (∀ in Fig. 5).
+    for parent, children in {'root': ['program'], 'program': ['T1', 'T2']}.items():
+        for parent_state, child_state in [
+            ('Active.Configure.Configured.ConnectEntities', 'Active.Configure.Configured.NotifyConfigured'),
+            ('Active.Start.Started', 'Active.Start.Started'),
+            ('Active.Run.Running', 'Active.Run.Running'),
+        ]:
+            for child in children:
+                assert first_time(hierarchy, parent, parent_state) >= first_time(hierarchy, child, child_state)
+
+
+def test_scheduler_runs_entities_in_declared_order_children_in_the_same_tick(hierarchy):
+    hierarchy.start()
+    assert hierarchy.spin_until(lambda: all_running(hierarchy))
+    probes.CALLS.clear()
+    hierarchy.spin_for(0.3)
+    ticks: dict[float, list[str]] = {}
+    for t, name in probes.CALLS:
+        ticks.setdefault(t, []).append(name)
+    expected = ['/root/program/T1/first', '/root/program/T1/second', '/root/program/T2/first',
+                '/root/program/T2/second', '/root/program/mix', '/root/plant']
+    complete = [names for names in ticks.values() if len(names) == len(expected)]
+    assert len(complete) >= 20, f'only {len(complete)} ticks in 0.3 s at 200 Hz'
+    assert all(names == expected for names in complete)
+    assert all(len(names) == len(expected) for names in list(ticks.values())[1:-1])
+
+
+def test_stop_goes_through_stopping_and_the_four_stopped_substates(hierarchy):
+    hierarchy.start()
+    assert hierarchy.spin_until(lambda: all_running(hierarchy))
+    nodes_before = len(hierarchy.node.get_node_names())
+    hierarchy.raise_event('e_root_stop')
+    assert hierarchy.spin_until(lambda: hierarchy.state('root').endswith('NotifyStopped'))
+    for composite in COMPOSITES:
+        assert hierarchy.states(composite)[len(CONFIGURE_TO_RUNNING):] == STOP, composite
+    hierarchy.spin_for(0.3)
+    remaining = [n for n in hierarchy.node.get_node_names() if n not in ('test_driver',)]
+    # Only the root's Coordinator, Composer and Configurator remain, for the bootstrap to destroy.
+    assert sorted(remaining) == ['composer', 'configurator', 'coordinator'], (nodes_before, remaining)
+
+
+@pytest.mark.parametrize('hierarchy', [model(safety={'raise_to_parent': ['e_program_fault']})], indirect=True)
+def test_emergency_puts_the_raising_composite_in_safety_and_needs_reconfiguration(hierarchy):
+    hierarchy.listen('/root')
+    hierarchy.start()
+    assert hierarchy.spin_until(lambda: all_running(hierarchy))
+    # An entity of the program composite raises e_emergency while Running.
+    hierarchy.raise_event('e_emergency', '/root/program')
+    assert hierarchy.spin_until(lambda: hierarchy.state('program') == 'Safety', timeout=2)
+    assert hierarchy.state('root').startswith('Active.Run.Running')  # the application decides
+    assert hierarchy.spin_until(lambda: any(e.name == 'e_program_fault' for e in hierarchy.events), timeout=2)
+    # Safety is left only by reconfiguration: run/start are ignored.
+    hierarchy.raise_event('e_program_run', '/root')
+    hierarchy.raise_event('e_program_start', '/root')
+    hierarchy.spin_for(0.2)
+    assert hierarchy.state('program') == 'Safety'
+    hierarchy.raise_event('e_program_configure', '/root')
+    assert hierarchy.spin_until(lambda: hierarchy.state('program') == 'Active.Configure.Configured.NotifyConfigured')
+
+
+@pytest.mark.parametrize('state', ['Active.Configure.Configured.NotifyConfigured', 'Active.Start.Started'])
+def test_emergency_in_other_states_of_active(state):
+    h = Hierarchy(model())
+    try:
+        h.start()
+        assert h.spin_until(lambda: h.coordinators.get('T1') is not None and h.state('T1') == state)
+        h.raise_event('e_emergency', '/root/program/T1')
+        assert h.spin_until(lambda: h.state('T1') == 'Safety', timeout=2)
+    finally:
+        h.close()
+
+
+def test_emergency_raised_by_a_functional_entity_at_the_deepest_level():
+    program = model()
+    program['entities'][0]['entities'][0] = task('T1', raise_on_tick='e_emergency', at_tick=5)
+    h = Hierarchy(program)
+    try:
+        h.start()
+        assert h.spin_until(lambda: h.coordinators.get('T1') is not None and h.state('T1') == 'Safety')
+        assert h.state('T2').startswith('Active.Run.Running')
+        ticks = h.composer.children['program'].children['T1'].scheduler.ticks
+        h.spin_for(0.2)
+        assert h.composer.children['program'].children['T1'].scheduler.ticks == ticks  # nothing computes
+    finally:
+        h.close()
+
+
+def test_connection_with_disagreeing_semantics_is_refused_naming_both_ports():
+    bad = {'name': 'root', 'rate': 100, 'entities': [
+        {'name': 'source', 'kind': 'SineSource', 'parameters': {'semantics': 'Position(ee|base)'}},
+        {'name': 'ctrl', 'kind': 'PController', 'parameters': {'semantics': 'Position(ee|world)'}},
+    ], 'connections': [{'from': 'source.signal', 'to': 'ctrl.setpoint'}]}
+    h = Hierarchy(bad)
+    try:
+        h.listen('/root')
+        h.start()
+        assert h.spin_until(lambda: any(e.name == 'e_root_connection_refused' for e in h.events))
+        refusal = next(e for e in h.events if e.name == 'e_root_connection_refused')
+        assert '/root/source.signal' in refusal.detail and '/root/ctrl.setpoint' in refusal.detail
+        assert "'Position(ee|base)' != 'Position(ee|world)'" in refusal.detail
+        assert h.spin_until(lambda: h.state('root') == 'Safety', timeout=2)
+        assert not h.composer.entities['ctrl'].inputs['setpoint'].connected
+    finally:
+        h.close()
+
+
+def test_task_added_while_running_reaches_running_and_others_never_leave_it():
+    steps = {'add_T3': {'add': [task('T3')], 'connections': []}}
+    h = Hierarchy(model(composition_steps=steps))
+    try:
+        h.start()
+        assert h.spin_until(lambda: all_running(h))
+        before = {c: len(h.states(c)) for c in COMPOSITES}
+        probes.CALLS.clear()
+        h.raise_event('e_program_compose_add_T3', '/root/program')
+        assert h.spin_until(lambda: 'T3' in h.coordinators and h.state('T3') == 'Active.Run.Running')
+        assert h.states('T3') == CONFIGURE_TO_RUNNING
+        h.spin_for(0.2)
+        assert {c: len(h.states(c)) for c in COMPOSITES} == before  # nobody else moved
+        assert any(name == '/root/program/T3/first' for _, name in probes.CALLS)  # and it computes
+        h.raise_event('e_root_stop')
+        assert h.spin_until(lambda: h.state('root').endswith('NotifyStopped'))
+        assert h.states('T3')[-1] == 'Active.Stop.Stopped.NotifyStopped'
+    finally:
+        h.close()

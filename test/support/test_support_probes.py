@@ -1,0 +1,27 @@
+"""Functional Entity kinds for the runtime tests: they record when the Scheduler runs them and
+can raise events on request."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from itasc_core.computation.functional_entity import FunctionalEntity
+
+#: (tick time, entity fully qualified name), appended by every OrderProbe.update.
+CALLS: list[tuple[float, str]] = []
+
+
+class OrderProbe(FunctionalEntity):
+    """Records every call of update; raises ``raise_on_tick`` (priority) on tick ``at_tick``."""
+
+    PARAMETERS = {'raise_on_tick': '', 'at_tick': 0}
+
+    def configure(self, params: dict[str, Any]) -> None:
+        self.raise_name, self.at_tick = params['raise_on_tick'], params['at_tick']
+        self.ticks = 0
+
+    def update(self, t: float) -> None:
+        self.ticks += 1
+        CALLS.append((t, self.get_fully_qualified_name()))
+        if self.raise_name and self.ticks == self.at_tick:
+            self.raise_event(self.raise_name, priority=True, detail='raised by test probe')

@@ -1,0 +1,208 @@
+"""The run recorder writes MCAP ROS 2 bags that rosbags decodes without a ROS install, including
+our own itasc_msgs types, and that stay readable when the recording process is signalled
+(SPEC: "recording the whole run to MCAP")."""
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 101))  # conftest.py normally sets it
+
+import rclpy  # noqa: E402
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+
+N_JOINT_STATES = 40
+N_EVENTS = 15
+
+
+def _spin_until(executor, condition, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        executor.spin_once(timeout_sec=0.02)
+    return condition()
+
+
+@pytest.fixture
+def context():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def _read_all(path: pathlib.Path):
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([path]) as reader:
+        connections = {c.topic: c for c in reader.connections}
+        messages = [(c.topic, t, reader.deserialize(raw, c.msgtype))
+                    for c, t, raw in reader.messages()]
+    return connections, messages
+
+
+def test_recorder_records_every_topic_under_prefix(context, tmp_path):
+    from itasc_msgs.msg import CoordinatorState, Event
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    from itasc_bringup.recording import Recorder
+
+    app = rclpy.create_node('fake_app', context=context)
+    joints = app.create_publisher(JointState, '/app/robot/joint_states', 10)
+    events = app.create_publisher(Event, '/app/itasc/events', QoSProfile(
+        depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    state = app.create_publisher(CoordinatorState, '/app/itasc/state', latched)
+    outside = app.create_publisher(String, '/elsewhere/chatter', 10)
+    # Published before the recorder exists: only transient-local durability can bring it in.
+    state.publish(CoordinatorState(composite='itasc', state='Active.Configure.Configuring',
+                                   previous_state='', event='e_itasc_configure'))
+
+    path = tmp_path / 'run.mcap'
+    recorder = Recorder(path, prefix='/app', context=context, scan_period=0.05)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(app)
+    executor.add_node(recorder)
+    try:
+        assert _spin_until(executor, lambda: joints.get_subscription_count() >= 1
+                           and events.get_subscription_count() >= 1
+                           and recorder.counts.get('/app/itasc/state', 0) == 1, 5.0), \
+            f'recorder did not discover the topics: {recorder.topics}'
+        for i in range(max(N_JOINT_STATES, N_EVENTS)):
+            if i < N_JOINT_STATES:
+                joints.publish(JointState(name=['j1', 'j2'], position=[0.01 * i, -0.01 * i],
+                                          velocity=[0.1, 0.2]))
+            if i < N_EVENTS:
+                events.publish(Event(source='/app/itasc/coordinator', name=f'e_step_{i}',
+                                     seq=i + 1, priority=(i % 2 == 0)))
+            outside.publish(String(data='not mine'))
+            executor.spin_once(timeout_sec=0.0)
+            time.sleep(0.02)
+        assert _spin_until(executor, lambda: recorder.counts['/app/robot/joint_states']
+                           == N_JOINT_STATES
+                           and recorder.counts['/app/itasc/events'] == N_EVENTS, 5.0), \
+            recorder.counts
+    finally:
+        executor.shutdown()
+        recorder.destroy_node()   # closes the file
+        recorder.close()          # idempotent
+        app.destroy_node()
+
+    assert recorder.closed
+    assert '/elsewhere/chatter' not in recorder.topics
+    connections, messages = _read_all(path)
+    assert set(connections) == {'/app/robot/joint_states', '/app/itasc/events', '/app/itasc/state'}
+    assert connections['/app/itasc/events'].msgtype == 'itasc_msgs/msg/Event'
+
+    by_topic: dict[str, list] = {}
+    for topic, _, msg in messages:
+        by_topic.setdefault(topic, []).append(msg)
+    assert len(by_topic['/app/robot/joint_states']) == N_JOINT_STATES
+    assert len(by_topic['/app/itasc/events']) == N_EVENTS
+    assert [m.name for m in by_topic['/app/itasc/events']] == [
+        f'e_step_{i}' for i in range(N_EVENTS)]
+    assert [m.seq for m in by_topic['/app/itasc/events']] == list(range(1, N_EVENTS + 1))
+    last = by_topic['/app/robot/joint_states'][-1]
+    assert list(last.name) == ['j1', 'j2']
+    assert last.position.tolist() == pytest.approx([0.01 * (N_JOINT_STATES - 1),
+                                                     -0.01 * (N_JOINT_STATES - 1)])
+    (coordinator_state,) = by_topic['/app/itasc/state']
+    assert coordinator_state.state == 'Active.Configure.Configuring'
+    assert coordinator_state.event == 'e_itasc_configure'
+    stamps = [t for _, t, _ in messages]
+    assert stamps == sorted(stamps) and abs(stamps[-1] - time.time_ns()) < 60e9
+
+    # rosbag2's channel metadata and schemas, as a reader of the file sees them
+    qos = connections['/app/itasc/state'].ext.offered_qos_profiles
+    assert qos and qos[0].durability.name == 'TRANSIENT_LOCAL'
+    from mcap.reader import make_reader
+
+    with open(path, 'rb') as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == 'ros2'
+        summary = reader.get_summary()
+    for channel in summary.channels.values():
+        assert channel.message_encoding == 'cdr'
+        assert 'reliability: reliable' in channel.metadata['offered_qos_profiles']
+        assert channel.metadata['topic_type_hash'].startswith('RIHS01_')
+    schemas = {s.name: s for s in summary.schemas.values()}
+    assert all(s.encoding == 'ros2msg' for s in schemas.values())
+    joint_state_def = schemas['sensor_msgs/msg/JointState'].data.decode()
+    assert '\n' + '=' * 80 + '\nMSG: std_msgs/Header\n' in joint_state_def
+    assert '\nMSG: builtin_interfaces/Time\n' in joint_state_def
+
+
+_PUBLISHER = textwrap.dedent('''
+    import sys, time
+    import rclpy
+    from sensor_msgs.msg import JointState
+    from itasc_bringup.recording import Recorder
+    from itasc_bringup.recording.recorder import main
+
+    if sys.argv[2] == 'module-main':
+        sys.exit(main([sys.argv[1], '--prefix', '/app']))
+    # 'bare': a careless caller, no try/finally at all; the file must still be finished.
+    # 'python-handlers': the same with rclpy's signal handlers off and ours instead.
+    if sys.argv[2] == 'python-handlers':
+        from rclpy.signals import SignalHandlerOptions
+        from itasc_bringup.recording import install_signal_handlers
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    else:
+        rclpy.init()
+    recorder = Recorder(sys.argv[1], prefix='/app', scan_period=0.05)
+    if sys.argv[2] == 'python-handlers':
+        install_signal_handlers(recorder)
+    node = rclpy.create_node('pub')
+    pub = node.create_publisher(JointState, '/app/joint_states', 10)
+    node.create_timer(0.01, lambda: pub.publish(JointState(name=['j'], position=[1.0])))
+    ex = rclpy.executors.SingleThreadedExecutor()
+    ex.add_node(node); ex.add_node(recorder)
+    ex.spin()
+''')
+
+
+@pytest.mark.parametrize('variant', ['module-main', 'bare', 'python-handlers'])
+@pytest.mark.parametrize('signum', [signal.SIGTERM, signal.SIGINT])
+def test_signalled_recorder_leaves_a_readable_file(tmp_path, variant, signum, context):
+    from sensor_msgs.msg import JointState
+
+    path = tmp_path / 'signalled.mcap'
+    proc = subprocess.Popen([sys.executable, '-c', _PUBLISHER, str(path), variant],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    node = rclpy.create_node('pub_here', context=context)
+    pub = node.create_publisher(JointState, '/app/here/joint_states', 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        # wait until the other process records what we publish
+        assert _spin_until(executor, lambda: pub.get_subscription_count() >= 1, 20.0), \
+            'recorder process never subscribed'
+        for _ in range(20):
+            pub.publish(JointState(name=['k'], position=[2.0]))
+            time.sleep(0.02)
+        time.sleep(0.3)
+        proc.send_signal(signum)
+        out, _ = proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        executor.shutdown()
+        node.destroy_node()
+    # module-main exits cleanly; the others die of the uncaught ExternalShutdownException or
+    # KeyboardInterrupt (which CPython turns into death by SIGINT)
+    allowed = (0,) if variant == 'module-main' else (0, 1, -signum, -signal.SIGINT)
+    assert proc.returncode in allowed, out.decode(errors='replace')
+    connections, messages = _read_all(path)
+    topics = [t for t, _, _ in messages]
+    assert topics.count('/app/here/joint_states') == 20, out.decode(errors='replace')
+    if variant != 'module-main':
+        assert topics.count('/app/joint_states') > 10

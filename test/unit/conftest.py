@@ -1,0 +1,25 @@
+"""Unit tests of the plain-Python iTaSC math (no ROS): make the source packages importable
+without an install, and share the robot models."""
+
+import pathlib
+import sys
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+for package in ('itasc_core', 'itasc_tasks'):
+    path = str(REPO / 'src' / package)
+    if path not in sys.path:
+        sys.path.insert(0, path)
+
+PANDA = REPO / 'config' / 'robots' / 'panda.urdf'
+PANDA_MOBILE = REPO / 'config' / 'robots' / 'panda_mobile.urdf'
+
+
+@pytest.fixture
+def panda():
+    """A fixed-base Panda with an object frame 'ee' at the TCP."""
+    from itasc_core.itasc import Robot
+    robot = Robot('panda', PANDA)
+    robot.add_frame('ee', 'panda_hand_tcp')
+    return robot
