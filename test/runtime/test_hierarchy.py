@@ -99,15 +99,15 @@ def test_scheduler_runs_entities_in_declared_order_children_in_the_same_tick(hie
 def test_stop_goes_through_stopping_and_the_four_stopped_substates(hierarchy):
     hierarchy.start()
     assert hierarchy.spin_until(lambda: all_running(hierarchy))
-    nodes_before = len(hierarchy.node.get_node_names())
+    assert len(hierarchy.executor.get_nodes()) > 20
     hierarchy.raise_event('e_root_stop')
     assert hierarchy.spin_until(lambda: hierarchy.state('root').endswith('NotifyStopped'))
     for composite in COMPOSITES:
         assert hierarchy.states(composite)[len(CONFIGURE_TO_RUNNING):] == STOP, composite
-    hierarchy.spin_for(0.3)
-    remaining = [n for n in hierarchy.node.get_node_names() if n not in ('test_driver',)]
+    hierarchy.spin_for(0.1)
+    remaining = [n.get_fully_qualified_name() for n in hierarchy.executor.get_nodes()]
     # Only the root's Coordinator, Composer and Configurator remain, for the bootstrap to destroy.
-    assert sorted(remaining) == ['composer', 'configurator', 'coordinator'], (nodes_before, remaining)
+    assert sorted(remaining) == ['/root/composer', '/root/configurator', '/root/coordinator', '/root/test_driver']
 
 
 @pytest.mark.parametrize('hierarchy', [model(safety={'raise_to_parent': ['e_program_fault']})], indirect=True)

@@ -283,13 +283,15 @@ class Running(_Model):
 
 
 class Solver(_Model):
-    """``wdls`` (weighted damped least squares, priorities by null-space projection) or ``qp``
-    (cascade of QPs with inequalities; ``backend`` any qpsolvers solver)."""
+    """``wdls`` (weighted damped least squares, priorities by null-space projection; ``damping``
+    the maximum damping near singularities) or ``qp`` (cascade of QPs with inequalities; ``backend``
+    any qpsolvers solver; ``regularization`` the weight of the joint-velocity norm)."""
 
     kind: Literal['wdls', 'qp'] = 'wdls'
     backend: str = 'daqp'
     joint_weights: dict[str, float] = Field(default_factory=dict)
     damping: float = Field(default=0.1, ge=0)
+    regularization: float = Field(default=1e-6, gt=0)
     position_limit_gain: float = Field(default=0.5, gt=0, le=1)
 
     @field_validator('joint_weights')

@@ -125,12 +125,12 @@ def _program(app: Application) -> CompositeModel:
     monitor_settings = {name: targets for name, targets in monitor_settings.items() if targets}
     return CompositeModel(
         name=program.name,
-        entities=[*robot_entities, _scene(app), *(_task(program, t) for t in tasks), _solver(app)],
+        entities=[*robot_entities, _scene(app), *(_task(program, t, 1.0 / app.rate) for t in tasks), _solver(app)],
         connections=connections,
         exports=exports,
         configurations=monitor_settings,
         configure=[c for c in program.configure if c in monitor_settings],
-        monitors=[_monitor(m) for m in program.monitors],
+        monitors=[_monitor(m, enabled=_initially_enabled(program, m.name, m.enabled)) for m in program.monitors],
         running=_running(program),
         safety=EMERGENCY,
     )
@@ -157,10 +157,18 @@ def _solver(app: Application) -> EntityModel:
     return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
         'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
         'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
-        'damping': solver.damping, 'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+        'damping': solver.damping, 'regularization': solver.regularization, 'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
 
 
-def _monitor(monitor: Monitor) -> MonitorModel:
+def _initially_enabled(program: Program, name: str, enabled: bool) -> bool:
+    """A Monitor the initial state of the Running sub-FSM switches is on only if that state says so
+    (it would otherwise watch the Tasks before the Coordinator set them up)."""
+    fsm = program.running
+    initial = fsm.states[fsm.initial].monitors if fsm is not None else None
+    return enabled if initial is None else name in initial
+
+
+def _monitor(monitor: Monitor, *, enabled: bool) -> MonitorModel:
     target, _, quantity = monitor.watch.partition('.')
     if target == 'Solver' and quantity.split('[')[0] in SOLVER_QUANTITIES:
         watch, field = 'Solver.status', quantity
@@ -170,7 +178,7 @@ def _monitor(monitor: Monitor) -> MonitorModel:
         watch, field = f'{target}.state', quantity
     return MonitorModel(name=monitor.name, watch=watch, field=field, condition=monitor.condition,
                         threshold=monitor.threshold, band=monitor.band, timeout=monitor.timeout, event=monitor.event,
-                        enabled=monitor.enabled, enable_on=[f'e_{monitor.name}_on'],
+                        enabled=enabled, enable_on=[f'e_{monitor.name}_on'],
                         disable_on=[f'e_{monitor.name}_off'])
 
 
@@ -193,25 +201,23 @@ def _running(program: Program) -> RunningModel | None:
 
 # -- Task -------------------------------------------------------------------------------------------
 
-def _task(program: Program, task: Task) -> CompositeModel:
+def _task(program: Program, task: Task, period: float) -> CompositeModel:
     t = task.name
     equality = task.constraint == 'equality'
     outputs = list(task.outputs or ()) or ['']
     entities = [
-        EntityModel(name='VKC', kind=KINDS['vkc'], parameters={
-            'task': t, 'type': task.type, 'o1': task.o1 or 'world', 'o2': task.o2 or 'world',
-            'coordinates': task.coordinates, 'joints': list(task.joints or ()) or ['']}),
+        EntityModel(name='VKC', kind=KINDS['vkc'], parameters=_chain(task)),
         EntityModel(name='CO', kind=KINDS['co'], parameters={'task': t, 'outputs': outputs}),
     ]
     connections = [_connect('VKC.features', 'CO.features'), _connect('CO.output', 'CC.output'),
                    _connect('CO.output', 'Rows.output'), _connect('CC.control', 'Rows.control')]
     if equality:
-        entities.append(EntityModel(name='SPG', kind=KINDS['spg'], parameters=_setpoint(task, outputs)))
+        entities.append(EntityModel(name='SPG', kind=KINDS['spg'], parameters=_setpoint(task, outputs) | {'tick_period': period}))
         connections += [_connect('VKC.features', 'SPG.features'), _connect('SPG.setpoint', 'CC.setpoint')]
     c = task.controller
     entities += [
         EntityModel(name='CC', kind=KINDS['cc'], parameters={
-            'task': t, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd, 'max_output': c.max_output,
+            'task': t, 'tick_period': period, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd, 'max_output': c.max_output,
             'inequality': not equality, 'lower': [float(v) for v in task.d_min or [-math.inf]],
             'upper': [float(v) for v in task.d_max or [math.inf]]}),
         EntityModel(name='Rows', kind=KINDS['rows'], parameters={
@@ -229,6 +235,13 @@ def _task(program: Program, task: Task) -> CompositeModel:
                           configurations=configurations,
                           configure=[name for name in program.configure if name in configurations],
                           running=_configuration_switch(configurations), safety=EMERGENCY)
+
+
+def _chain(task: Task) -> dict[str, Any]:
+    if task.type == 'joint':
+        return {'task': task.name, 'type': 'joint', 'joints': list(task.joints)}
+    params = {'task': task.name, 'type': task.type, 'o1': task.o1, 'o2': task.o2}
+    return params | ({'coordinates': task.coordinates} if task.type == 'cartesian' else {})
 
 
 def _setpoint(task: Task, outputs: list[str]) -> dict[str, Any]:

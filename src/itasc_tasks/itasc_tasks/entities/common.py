@@ -25,22 +25,28 @@ def table_port(name: str, direction: str, kind: str, task: str) -> PortSpec:
 
 class Ticks:
     """Tick bookkeeping: the time step, and whether the entity resumes after a pause (its Task was
-    deactivated by the Coordinator, so its Scheduler skipped it) or runs for the first time."""
+    deactivated by the Coordinator, so the Scheduler skipped it) or runs for the first time.
 
-    def __init__(self) -> None:
+    A pause is a gap of more than ``GAP`` nominal periods and at least ``MIN_GAP`` seconds, so
+    that timer jitter is never taken for one.
+    """
+
+    GAP = 5.0
+    MIN_GAP = 0.2
+
+    def __init__(self, period: float) -> None:
+        self.period = period
         self.last: float | None = None
-        self.period = 0.0
 
     def step(self, t: float) -> tuple[float, bool]:
-        if self.last is None:
-            self.last = t
+        """``(dt, resumed)`` for the tick at time ``t``; dt is the nominal period after a pause."""
+        last, self.last = self.last, t
+        if last is None:
             return 0.0, True
-        dt = t - self.last
-        self.last = t
-        resumed = self.period > 0.0 and dt > 2.5 * self.period
-        if not resumed and dt > 0.0:
-            self.period = dt
-        return (self.period if resumed else dt), resumed
+        dt = t - last
+        if dt > max(self.GAP * self.period, self.MIN_GAP):
+            return self.period, True
+        return dt, False
 
 
 def names(values: list[Any]) -> list[str]:

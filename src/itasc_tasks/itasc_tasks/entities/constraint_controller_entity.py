@@ -37,6 +37,7 @@ class ConstraintControllerEntity(FunctionalEntity):
 
     PARAMETERS = {
         'task': 'task',
+        'tick_period': 0.01,      # the program's nominal tick period [s]
         'kind': 'pid',            # p | pid
         'kp': 1.0,
         'ki': 0.0,
@@ -78,7 +79,8 @@ class ConstraintControllerEntity(FunctionalEntity):
         self.inequality = params['inequality']
         self.lower = np.asarray(params['lower'], dtype=float)
         self.upper = np.asarray(params['upper'], dtype=float)
-        self._ticks = getattr(self, '_ticks', Ticks())
+        self._ticks = getattr(self, '_ticks', None) or Ticks(params['tick_period'])
+        self._ticks.period = params['tick_period']
 
     def update(self, t: float) -> None:
         msg = self.inputs['output'].latest

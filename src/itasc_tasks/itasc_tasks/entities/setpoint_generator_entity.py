@@ -48,6 +48,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
 
     PARAMETERS = {
         'task': 'task',
+        'tick_period': 0.01,      # the program's nominal tick period [s]
         'kind': 'hold',
         'outputs': [''],            # the Task's outputs, as the Constraint Output selects them
         'target': [0.0],
@@ -106,7 +107,8 @@ class SetpointGeneratorEntity(FunctionalEntity):
             'topic': lambda: TopicSetpoint(),
         }[self.kind]()
         self._subscribe(params['topic'] if self.kind == 'topic' else '')
-        self._ticks = getattr(self, '_ticks', Ticks())
+        self._ticks = getattr(self, '_ticks', None) or Ticks(params['tick_period'])
+        self._ticks.period = params['tick_period']
         self._restart = True
         self._t0 = 0.0
 

@@ -53,7 +53,8 @@ class SolverEntity(FunctionalEntity):
         'upper': [math.inf],
         'velocity_limit': [math.inf],
         'joint_weights': [1.0],    # one value, or one per joint
-        'damping': 0.1,            # wdls: maximum damping; qp: regularisation
+        'damping': 0.1,            # wdls: maximum damping near singularities
+        'regularization': 1e-6,    # qp: weight of the joint-velocity norm
         'position_limit_gain': 0.5,
         'period': 0.01,            # the nominal tick period, used until two ticks were seen
     }
@@ -80,8 +81,9 @@ class SolverEntity(FunctionalEntity):
                 return f'{key} has {len(params[key])} values for {n} joints'
         if len(params['joint_weights']) not in (1, n) or min(params['joint_weights']) <= 0:
             return 'joint_weights: one positive value, or one per joint'
-        if params['damping'] < 0 or not 0 < params['position_limit_gain'] <= 1 or params['period'] <= 0:
-            return 'damping >= 0, 0 < position_limit_gain <= 1 and period > 0 expected'
+        if params['damping'] < 0 or params['regularization'] <= 0 or params['period'] <= 0 \
+                or not 0 < params['position_limit_gain'] <= 1:
+            return 'damping >= 0, regularization > 0, 0 < position_limit_gain <= 1 and period > 0 expected'
         return None
 
     def configure(self, params: dict[str, Any]) -> None:
@@ -99,8 +101,7 @@ class SolverEntity(FunctionalEntity):
         if params['kind'] == 'wdls':
             self.solver = WdlsSolver(max_damping=params['damping'], **common)
         else:
-            self.solver = QpSolver(backend=params['backend'], regularization=max(params['damping'], 1e-12),
-                                   **common)
+            self.solver = QpSolver(backend=params['backend'], regularization=params['regularization'], **common)
         self.period = params['period']
         self._last_t: float | None = None
         self._dt = self.period

@@ -24,6 +24,8 @@ from time import perf_counter
 
 import numpy as np
 import qpsolvers
+from scipy.linalg.lapack import dgeqp3 as _geqp3
+from scipy.linalg.lapack import dorgqr as _orgqr
 
 from .problem import ConstraintRows, SolverResult, group_levels, velocity_bounds
 
@@ -105,12 +107,18 @@ class QpSolver:
         return result
 
     def _lock(self, locked: np.ndarray, J: np.ndarray) -> np.ndarray:
-        """Extend the orthonormal basis of locked directions with the row space of J."""
+        """Extend the orthonormal basis of locked directions with the row space of J
+        (rank-revealing QR with column pivoting of the part of J^T not yet locked)."""
         if locked.shape[0]:
             J = J - (J @ locked.T) @ locked
-        _, s, Vt = np.linalg.svd(J, full_matrices=False)
-        rank = int(np.count_nonzero(s > self.rank_tolerance * max(1.0, float(s[0]))))
-        return np.concatenate([locked, Vt[:rank]]) if rank else locked
+        qr, _, tau, _, _ = _geqp3(J.T)
+        k = min(J.shape)
+        diagonal = np.abs(qr.diagonal())
+        rank = int(np.count_nonzero(diagonal > self.rank_tolerance * max(1.0, diagonal[0])))
+        if not rank:
+            return locked
+        q, _, _ = _orgqr(qr[:, :k], tau[:k])
+        return np.concatenate([locked, q[:, :rank].T])
 
     def _solve_level(self, n: int, eq: list[ConstraintRows], ineq: list[ConstraintRows],
                      locked: np.ndarray, previous: np.ndarray,
