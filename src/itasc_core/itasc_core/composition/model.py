@@ -181,11 +181,12 @@ class CompositeModel(_Strict):
 
 def _entity_kind(value: Any) -> str:
     if isinstance(value, dict):
-        return 'entity' if 'kind' in value else 'composite'
+        return 'composite' if 'entities' in value else 'entity'
     return 'composite' if isinstance(value, CompositeModel) else 'entity'
 
 
 #: Entities are written ``{name, kind, parameters}`` or, for a composite, ``{name, entities, ...}``.
+#: A composite is recognised by its ``entities``.
 EntityOrComposite = Annotated[
     Union[Annotated[EntityModel, Tag('entity')], Annotated[CompositeModel, Tag('composite')]],
     Discriminator(_entity_kind),
