@@ -64,7 +64,7 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
     program = app.program
     _unique(where, [('program', 'robots', i, 'name') for i in range(len(program.robots))]
             + [('program', 'objects', i, 'name') for i in range(len(program.objects))],
-            [r.name for r in program.robots] + [o.name for o in program.objects], 'robot or object',
+            [r.name for r in program.robots] + [o.name for o in program.objects], 'robot or object name',
             reserved=('world',))
     robots = {}
     for i, robot in enumerate(program.robots):
@@ -89,9 +89,9 @@ def _unique(where: _Where, locs: list[Loc], names: list[str], what: str, *, rese
     seen: set[str] = set()
     for loc, name in zip(locs, names):
         if name in seen:
-            raise where.error(loc, f"duplicate {what} name '{name}'")
+            raise where.error(loc, f"duplicate {what} '{name}'")
         if name in reserved:
-            raise where.error(loc, f"'{name}' is reserved; choose another {what} name")
+            raise where.error(loc, f"'{name}' is reserved: choose another {what}")
         seen.add(name)
 
 
@@ -108,7 +108,7 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
         raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' cannot be loaded: {err}") from None
     links = [f.name for f in model.model.frames if f.type == pin.FrameType.BODY]
     _unique(where, [loc + ('frames', k, 'name') for k in range(len(robot.frames))],
-            [f.name for f in robot.frames], f"frame of robot '{robot.name}'")
+            [f.name for f in robot.frames], f"frame name on robot '{robot.name}'")
     for k, frame in enumerate(robot.frames):
         if frame.link not in links:
             raise where.error(loc + ('frames', k, 'link'),
@@ -126,7 +126,7 @@ def _find_urdf(directory: Path, reference: str) -> Path | None:
 def _objects(where: _Where, program: Program) -> None:
     for i, obj in enumerate(program.objects):
         _unique(where, [('program', 'objects', i, 'frames', k, 'name') for k in range(len(obj.frames))],
-                [f.name for f in obj.frames], f"frame of object '{obj.name}'", reserved=('origin',))
+                [f.name for f in obj.frames], f"frame name on object '{obj.name}'", reserved=('origin',))
 
 
 def frames_of(program: Program, models: dict[str, RobotModel]) -> dict[str, list[str]]:
@@ -145,7 +145,7 @@ def frames_of(program: Program, models: dict[str, RobotModel]) -> dict[str, list
 def _tasks(where: _Where, program: Program, *, robots: dict, models: dict[str, RobotModel],
            joints: list[str]) -> None:
     _unique(where, [('program', 'tasks', i, 'name') for i in range(len(program.tasks))],
-            [t.name for t in program.tasks], 'task', reserved=RESERVED + tuple(f'Robot_{r}' for r in robots))
+            [t.name for t in program.tasks], 'task name', reserved=RESERVED + tuple(f'Robot_{r}' for r in robots))
     frames = frames_of(program, models)
     for i, task in enumerate(program.tasks):
         loc = ('program', 'tasks', i)
@@ -169,7 +169,7 @@ def _tasks(where: _Where, program: Program, *, robots: dict, models: dict[str, R
 def _monitors(where: _Where, program: Program) -> None:
     tasks = {t.name: t for t in program.tasks}
     _unique(where, [('program', 'monitors', i, 'name') for i in range(len(program.monitors))],
-            [m.name for m in program.monitors], 'monitor', reserved=RESERVED + tuple(tasks))
+            [m.name for m in program.monitors], 'monitor name', reserved=RESERVED + tuple(tasks))
     for i, monitor in enumerate(program.monitors):
         target, _, quantity = monitor.watch.partition('.')
         quantity = quantity.split('[')[0]

@@ -1,0 +1,6 @@
+"""Computation (paper §4): the Functional Entity base, Monitors and a small library of entities."""
+
+from .functional_entity import FunctionalEntity
+from .monitor import Condition, Monitor
+
+__all__ = ['FunctionalEntity', 'Monitor', 'Condition']
