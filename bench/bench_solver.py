@@ -16,6 +16,7 @@ import pathlib
 import platform
 import sys
 import time
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -198,6 +199,7 @@ def bench_talos(steps: int) -> None:
 
 
 def main() -> None:
+    warnings.filterwarnings('ignore', message='Converted matrix')  # pink builds dense for OSQP
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--steps', type=int, default=2000)
     steps = parser.parse_args().steps

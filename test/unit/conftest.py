@@ -1,6 +1,7 @@
 """Unit tests of the plain-Python iTaSC math (no ROS): make the source packages importable
 without an install, and share the robot models."""
 
+import importlib.util
 import pathlib
 import sys
 
@@ -8,9 +9,8 @@ import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 for package in ('itasc_core', 'itasc_tasks'):
-    path = str(REPO / 'src' / package)
-    if path not in sys.path:
-        sys.path.insert(0, path)
+    if importlib.util.find_spec(package) is None:  # not installed (no colcon overlay)
+        sys.path.insert(0, str(REPO / 'src' / package))
 
 PANDA = REPO / 'config' / 'robots' / 'panda.urdf'
 PANDA_MOBILE = REPO / 'config' / 'robots' / 'panda_mobile.urdf'

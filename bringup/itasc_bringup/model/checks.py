@@ -248,7 +248,8 @@ def _solver(where: _Where, program: Program, joints: list[str]) -> None:
     solver = program.solver
     for joint in solver.joint_weights:
         if joint not in joints:
-            raise where.error(('program', 'solver', 'joint_weights', joint), f"unknown joint '{joint}'; joints: {joints}")
+            raise where.error(('program', 'solver', 'joint_weights', joint),
+                              f"unknown joint '{joint}'; joints: {joints}")
     if solver.kind == 'qp':
         import qpsolvers
         if solver.backend not in qpsolvers.available_solvers:
@@ -263,7 +264,8 @@ def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> N
         if driver.robot not in joints:
             raise where.error(loc + ('robot',), f"unknown robot '{driver.robot}'; robots: {sorted(joints)}")
         if driver.robot in driven:
-            raise where.error(loc + ('robot',), f"robot '{driver.robot}' already has a driver (drivers[{driven[driver.robot]}])")
+            raise where.error(loc + ('robot',), f"robot '{driver.robot}' already has a driver "
+                              f'(drivers[{driven[driver.robot]}])')
         driven[driver.robot] = i
         robot_joints = joints[driver.robot]
         for joint in driver.initial:

@@ -22,7 +22,8 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 __all__ = ['Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task', 'Controller',
-           'Setpoint', 'Placement', 'Driver', 'Sensor', 'Solver', 'Monitor', 'ControllerSettings', 'Settings', 'State', 'Transition', 'Running', 'FEATURES']
+           'Setpoint', 'Placement', 'Driver', 'Sensor', 'Solver', 'Monitor', 'ControllerSettings', 'Settings',
+           'State', 'Transition', 'Running', 'FEATURES']
 
 NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
@@ -365,4 +366,3 @@ class Application(_Model):
     program: Program
     drivers: list[Driver] = Field(min_length=1)
     sensors: list[Sensor] = Field(default_factory=list)
-

@@ -157,7 +157,8 @@ def _solver(app: Application) -> EntityModel:
     return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
         'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
         'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
-        'damping': solver.damping, 'regularization': solver.regularization, 'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+        'damping': solver.damping, 'regularization': solver.regularization,
+        'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
 
 
 def _initially_enabled(program: Program, name: str, enabled: bool) -> bool:
@@ -212,12 +213,14 @@ def _task(program: Program, task: Task, period: float) -> CompositeModel:
     connections = [_connect('VKC.features', 'CO.features'), _connect('CO.output', 'CC.output'),
                    _connect('CO.output', 'Rows.output'), _connect('CC.control', 'Rows.control')]
     if equality:
-        entities.append(EntityModel(name='SPG', kind=KINDS['spg'], parameters=_setpoint(task, outputs) | {'tick_period': period}))
+        entities.append(EntityModel(name='SPG', kind=KINDS['spg'],
+                                    parameters=_setpoint(task, outputs) | {'tick_period': period}))
         connections += [_connect('VKC.features', 'SPG.features'), _connect('SPG.setpoint', 'CC.setpoint')]
     c = task.controller
     entities += [
         EntityModel(name='CC', kind=KINDS['cc'], parameters={
-            'task': t, 'tick_period': period, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd, 'max_output': c.max_output,
+            'task': t, 'tick_period': period, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd,
+            'max_output': c.max_output,
             'inequality': not equality, 'lower': [float(v) for v in task.d_min or [-math.inf]],
             'upper': [float(v) for v in task.d_max or [math.inf]]}),
         EntityModel(name='Rows', kind=KINDS['rows'], parameters={

@@ -12,7 +12,14 @@ from typing import Protocol
 
 import numpy as np
 
-__all__ = ['ConstraintOutput', 'FeatureSource']
+__all__ = ['ConstraintOutput', 'FeatureSource', 'compact_index']
+
+
+def compact_index(index: Sequence[int]) -> slice | np.ndarray:
+    """A slice for consecutive ascending indices (cheap views), else an index array."""
+    if len(index) and list(index) == list(range(index[0], index[0] + len(index))):
+        return slice(index[0], index[0] + len(index))
+    return np.array(index, dtype=int)
 
 
 class FeatureSource(Protocol):
@@ -39,14 +46,14 @@ class ConstraintOutput:
         self.y = np.zeros(0)
         self.jacobian = np.zeros((0, 0))
         self._bound: tuple[str, ...] | None = None
-        self._index = np.zeros(0, dtype=int)
+        self._index: slice | np.ndarray = slice(0)
 
     def _bind(self, vkc: FeatureSource) -> None:
         selected = vkc.names if self.outputs is None else self.outputs
         missing = [n for n in selected if n not in vkc.names]
         if missing:
             raise KeyError(f'constraint output {missing} not among the VKC features {vkc.names}')
-        self._index = np.array([vkc.names.index(n) for n in selected], dtype=int)
+        self._index = compact_index([vkc.names.index(n) for n in selected])
         self.rotation = None
         if self.combination is not None:
             if self.combination.shape[1] != len(selected):

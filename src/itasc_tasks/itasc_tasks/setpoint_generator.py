@@ -12,14 +12,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
 
 __all__ = ['FixedSetpoint', 'MinimumJerkSetpoint', 'TrapezoidalSetpoint', 'PeriodicSetpoint',
-           'TopicSetpoint', 'Value']
+           'TopicSetpoint', 'SetpointGenerator', 'Value']
 
 Value = np.ndarray | pin.SE3
+
+
+class SetpointGenerator(Protocol):
+    """What a Task needs from a setpoint generator."""
+
+    started: bool
+
+    def start(self, value: Value, t: float) -> None: ...
+
+    def __call__(self, t: float) -> tuple[Value, np.ndarray]: ...
 
 
 def _as_value(value: Value | Sequence[float] | float) -> Value:

@@ -19,7 +19,7 @@ from itasc_core.itasc.solver.problem import ConstraintRows
 
 from .constraint_controller import PController
 from .constraint_output import ConstraintOutput
-from .setpoint_generator import FixedSetpoint
+from .setpoint_generator import FixedSetpoint, SetpointGenerator
 from .vkc import CartesianVKC, DistanceVKC, JointVKC
 
 __all__ = ['TaskComputation']
@@ -30,7 +30,7 @@ class TaskComputation:
 
     def __init__(self, name: str, *, vkc: CartesianVKC | DistanceVKC | JointVKC,
                  output: ConstraintOutput | None = None, controller: PController | None = None,
-                 setpoint: object | None = None, priority: int = 0,
+                 setpoint: SetpointGenerator | None = None, priority: int = 0,
                  weights: float | Sequence[float] = 1.0,
                  lower: float | Sequence[float] | None = None,
                  upper: float | Sequence[float] | None = None) -> None:
@@ -47,6 +47,7 @@ class TaskComputation:
         self.priority = priority
         self.weights = weights  # may be switched by a Configurator
         self._weights: object = None
+        self._pose_setpoint: tuple[object, np.ndarray] = (None, np.zeros(0))
         self.lower = -np.inf if lower is None else np.asarray(lower, dtype=float)
         self.upper = np.inf if upper is None else np.asarray(upper, dtype=float)
         self.y = np.zeros(0)
@@ -85,7 +86,9 @@ class TaskComputation:
                 self.setpoint.start(self.vkc.pose if se3 else y, t)
             value, feedforward = self.setpoint(t)
             if isinstance(value, pin.SE3):
-                value = self.output.select(self.vkc.features_of(value))
+                if value is not self._pose_setpoint[0]:  # a fixed target: convert once
+                    self._pose_setpoint = (value, self.vkc.features_of(value))
+                value = self.output.select(self._pose_setpoint[1])
                 feedforward = self.output.select(feedforward)
             self.y_desired = value
             self.controller.rotation = self.output.rotation

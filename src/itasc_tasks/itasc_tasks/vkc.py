@@ -13,6 +13,8 @@ import numpy as np
 import pinocchio as pin
 from itasc_core.itasc.scene import Scene
 
+from .constraint_output import compact_index
+
 __all__ = ['CartesianVKC', 'DistanceVKC', 'JointVKC']
 
 
@@ -50,11 +52,11 @@ class CartesianVKC:
     def compute(self, scene: Scene) -> None:
         self.pose = scene.relative_pose(self.o1, self.o2)
         self.features = self.features_of(self.pose)
-        if self.coordinates == 'log6':
-            self.jacobian = pin.Jlog6(self.pose) @ scene.relative_jacobian(
-                self.o1, self.o2, expressed='o2')
-        else:
-            self.jacobian = scene.relative_jacobian(self.o1, self.o2)
+        J = scene.relative_jacobian(self.o1, self.o2)
+        if self.coordinates == 'log6':  # body twist of o2 relative to o1, then d log6
+            J = pin.Jlog6(self.pose) @ np.matmul(self.pose.rotation.T,
+                                                 J.reshape(2, 3, -1)).reshape(6, -1)
+        self.jacobian = J
 
 
 class DistanceVKC:
@@ -99,12 +101,12 @@ class JointVKC:
         self.features = np.zeros(len(self.names))
         self.jacobian = np.zeros((len(self.names), 0))
         self._version = -1
-        self._index = np.zeros(0, dtype=int)
+        self._index: slice | np.ndarray = slice(0)
 
     def compute(self, scene: Scene) -> None:
         if self._version != scene.version:  # (re)bind to the program-wide joint vector
             self.names = tuple(scene.joint_names if self.joints is None else self.joints)
-            self._index = scene.joint_indices(self.names)
+            self._index = compact_index(list(scene.joint_indices(self.names)))
             self.jacobian = np.eye(scene.nv)[self._index]
             self._version = scene.version
-        self.features = scene.q[self._index]
+        self.features = scene.q[self._index].copy()

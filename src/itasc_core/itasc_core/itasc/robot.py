@@ -52,9 +52,8 @@ class Robot:
         root = {'fixed': None, 'planar': pin.JointModelPlanar(),
                 'free_flyer': pin.JointModelFreeFlyer()}[base]
         text = str(urdf)
-        from_xml = text.lstrip().startswith('<')
-        args = (text,) if root is None else (text, root)
-        self.model: pin.Model = (pin.buildModelFromXML if from_xml else pin.buildModelFromUrdf)(*args)
+        build = pin.buildModelFromXML if text.lstrip().startswith('<') else pin.buildModelFromUrdf
+        self.model: pin.Model = build(text) if root is None else build(text, root)
         self._place(se3(xyz, rpy))
         self._index_joints(prefix)
         self._read_limits()

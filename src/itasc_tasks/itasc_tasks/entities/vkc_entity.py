@@ -43,7 +43,11 @@ class _RelationView:
     def relative_pose(self, o1: str, o2: str) -> pin.SE3:
         return self.pose
 
-    def relative_jacobian(self, o1: str, o2: str) -> np.ndarray:
+    def relative_jacobian(self, o1: str, o2: str, *, expressed: str = 'o1') -> np.ndarray:
+        """The relation's Jacobian, expressed in o1 (as the Scene sends it) or in o2."""
+        if expressed == 'o2':
+            Rt = self.pose.rotation.T
+            return np.vstack([Rt @ self.jacobian[:3], Rt @ self.jacobian[3:]])
         return self.jacobian.copy()
 
 

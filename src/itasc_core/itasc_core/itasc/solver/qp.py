@@ -41,12 +41,14 @@ class QpSolver:
     def __init__(self, *, backend: str = 'daqp', direct: bool = True,
                  joint_weights: float | np.ndarray = 1.0, regularization: float = 1e-8,
                  position_limit_gain: float = 0.5, slack_tolerance: float = 1e-6,
-                 rank_tolerance: float = 1e-9, backend_options: dict | None = None) -> None:
+                 rank_tolerance: float = 1e-6, backend_options: dict | None = None) -> None:
         """``backend``: any ``qpsolvers.available_solvers`` name. ``direct``: with 'daqp', call
         DAQP's own API instead of ``qpsolvers.solve_qp`` (same solver, ~20 us less per QP).
         ``regularization`` rho weighs the joint-space term (``joint_weights`` W_q);
         ``position_limit_gain`` in (0, 1] is the share of the distance to a position limit
-        allowed in one cycle; ``backend_options`` go to the backend."""
+        allowed in one cycle; an inequality row violated by more than ``slack_tolerance``
+        reports infeasible; higher-level equality directions weaker than ``rank_tolerance``
+        (relative, pivoted QR) are not locked; ``backend_options`` go to the backend."""
         if backend not in qpsolvers.available_solvers:
             raise ValueError(f'QP backend {backend!r} is not available; available: '
                              f'{qpsolvers.available_solvers}')
@@ -60,8 +62,8 @@ class QpSolver:
         self.position_limit_gain = position_limit_gain
         self.slack_tolerance = slack_tolerance
         self.rank_tolerance = rank_tolerance
-        defaults = {'osqp': {'eps_abs': 1e-7, 'eps_rel': 1e-7, 'polishing': True,
-                             'verbose': False, 'raise_error': False},
+        defaults = {'osqp': {'eps_abs': 1e-7, 'eps_rel': 1e-7, 'verbose': False,
+                             'raise_error': False},
                     'proxqp': {'eps_abs': 1e-9, 'eps_rel': 0.0}}
         self.backend_options = {**defaults.get(backend, {}), **(backend_options or {})}
 
@@ -126,24 +128,28 @@ class QpSolver:
                      lb: np.ndarray, ub: np.ndarray, reg: float | np.ndarray) -> np.ndarray | None:
         ms = sum(r.J.shape[0] for r in ineq)
         m = n + ms
-        H = np.zeros((m, m))
-        f = np.zeros(m)
         if eq:
             J = np.concatenate([r.J for r in eq]) if len(eq) > 1 else eq[0].J
             w = np.concatenate([r.weights for r in eq]) if len(eq) > 1 else eq[0].weights
             d = np.concatenate([r.desired for r in eq]) if len(eq) > 1 else eq[0].desired
             WJ = w[:, None] * J
-            np.matmul(J.T, WJ, out=H[:n, :n])
-            np.matmul(-d, WJ, out=f[:n])
-        H.flat[:n * m:m + 1] += reg
-        # general constraints C x in [cl, cu]: level inequalities, kept inequalities, locked
-        blocks, cl, cu = [], [], []
-        if ineq:
-            Ci = np.zeros((ms, m))
-            Ci[:, :n] = np.concatenate([r.J for r in ineq])
-            Ci[:, n:] = np.eye(ms)
+            Hv, fv = J.T @ WJ, d @ WJ
+            fv *= -1.0
+        else:
+            Hv, fv = np.zeros((n, n)), np.zeros(n)
+        Hv.flat[::n + 1] += reg
+        if ms:
+            H = np.zeros((m, m))
+            H[:n, :n] = Hv
             H.flat[n * m + n::m + 1] = np.concatenate([r.weights for r in ineq]) + np.mean(reg)
-            blocks.append(Ci)
+            f = np.concatenate([fv, np.zeros(ms)])
+        else:
+            H, f = Hv, fv
+        # general constraints C x in [cl, cu]: level inequalities (with their slacks), kept
+        # higher-level inequalities, then the locked equalities
+        blocks, cl, cu = [], [], []
+        if ms:
+            blocks.append(np.hstack([np.concatenate([r.J for r in ineq]), np.eye(ms)]))
             cl += [r.lower for r in ineq]
             cu += [r.upper for r in ineq]
         for J, lo, up in kept:
@@ -156,26 +162,28 @@ class QpSolver:
             target = locked @ previous
             cl.append(target)
             cu.append(target)
-        C = np.concatenate(blocks) if blocks else np.zeros((0, m))
-        cl = np.concatenate(cl) if cl else np.zeros(0)
-        cu = np.concatenate(cu) if cu else np.zeros(0)
-        if self.direct:
-            return self._solve_daqp(H, f, C, cl, cu, n_ineq, lb, ub, n)
-        return self._solve_qpsolvers(H, f, C, cl, cu, n_ineq, lb, ub, n)
+        if not blocks:
+            C, cl, cu = np.zeros((0, m)), lb, ub
+        else:
+            C = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+            cl, cu = np.concatenate([lb] + cl), np.concatenate([ub] + cu)
+        solve = self._solve_daqp if self.direct else self._solve_qpsolvers
+        return solve(H, f, C, cl, cu, n_ineq, n)
 
-    def _solve_daqp(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, cl: np.ndarray,
-                    cu: np.ndarray, n_ineq: int, lb: np.ndarray, ub: np.ndarray,
-                    n: int) -> np.ndarray | None:
-        sense = np.zeros(n + C.shape[0], dtype=np.int32)
-        sense[n + n_ineq:] = _EQUALITY
-        x, _, exitflag, _ = self._daqp(H, f, C, np.concatenate([ub, cu]),
-                                       np.concatenate([lb, cl]), sense)
+    def _solve_daqp(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, lower: np.ndarray,
+                    upper: np.ndarray, n_ineq: int, n: int) -> np.ndarray | None:
+        """``lower``/``upper``: n simple bounds on qdot, then the bounds of the rows of C."""
+        sense = None
+        if C.shape[0] > n_ineq:
+            sense = np.zeros(lower.shape[0], dtype=np.int32)
+            sense[n + n_ineq:] = _EQUALITY
+        x, _, exitflag, _ = self._daqp(H, f, C, upper, lower, sense)
         return x[:n] if exitflag >= 1 and np.isfinite(x).all() else None
 
-    def _solve_qpsolvers(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, cl: np.ndarray,
-                         cu: np.ndarray, n_ineq: int, lb: np.ndarray, ub: np.ndarray,
-                         n: int) -> np.ndarray | None:
+    def _solve_qpsolvers(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, lower: np.ndarray,
+                         upper: np.ndarray, n_ineq: int, n: int) -> np.ndarray | None:
         m = H.shape[0]
+        lb, ub, cl, cu = lower[:n], upper[:n], lower[n:], upper[n:]
         Ci, li, ui = C[:n_ineq], cl[:n_ineq], cu[:n_ineq]
         up, lo = np.isfinite(ui), np.isfinite(li)
         G = np.concatenate([Ci[up], -Ci[lo]]) if up.any() or lo.any() else None

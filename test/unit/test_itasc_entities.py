@@ -1,0 +1,348 @@
+"""The Functional Entities of the constraint-based program, its Tasks and its Drivers (paper §4.1,
+§4.2), as rclpy nodes in this process: connected port to port as a Composer would connect them,
+updated as a Scheduler would, events observed on their composite's event topic. Real rclpy, no mocks.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+import yaml
+from geometry_msgs.msg import PoseStamped
+from itasc_msgs.msg import ConstraintRows
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from itasc_core.communication.events import EventListener
+from itasc_core.entity import CompositeContext
+from itasc_core.itasc import Robot
+from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
+from itasc_core.itasc.entities.messages import read_table, stamp, table_msg
+from itasc_drivers.fake_ros2_control import PANDA, PANDA_READY, FakeRos2Control
+from itasc_drivers.pose_sensor import PoseSensor
+from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
+from itasc_drivers.simulated_robot import SimulatedRobot
+from itasc_tasks.entities import (ConstraintControllerEntity, ConstraintOutputEntity, ConstraintRowsEntity,
+                                  SetpointGeneratorEntity, VKCEntity)
+
+URDF = str(Path(__file__).resolve().parents[2] / 'config' / 'robots' / 'panda.urdf')
+READY = dict(zip(PANDA, PANDA_READY))
+DT = 0.01
+
+
+@pytest.fixture(scope='module', autouse=True)
+def ros():
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    yield
+    rclpy.try_shutdown()
+
+
+class World:
+    """Entities of one test in their own composite namespace, and an executor to spin them."""
+
+    count = 0
+
+    def __init__(self) -> None:
+        World.count += 1
+        self.ctx = CompositeContext(name='itasc', namespace=f'/entities_test_{World.count}/itasc')
+        self.executor = SingleThreadedExecutor()
+        self.nodes = []
+        self.observer = rclpy.create_node('observer', namespace=self.ctx.namespace)
+        self.events = EventListener(self.observer, topics=[self.ctx.events_topic])
+        self.add(self.observer)
+        self.seen: list[str] = []
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def entity(self, cls, name: str, **parameters):
+        return self.add(cls(name, composite=self.ctx, parameters=parameters))
+
+    def spin_until(self, condition, timeout: float = 5.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+            self.seen += [e.name for e in self.events.drain()]
+            if condition():
+                return True
+        return False
+
+    def close(self) -> None:
+        for node in self.nodes:
+            self.executor.remove_node(node)
+            node.destroy_node()
+
+
+@pytest.fixture
+def world():
+    w = World()
+    yield w
+    w.close()
+
+
+def link(source, output: str, target, input_: str) -> None:
+    target.inputs[input_].connect(source.outputs[output].topic)
+
+
+def flow(value: dict) -> str:
+    return yaml.safe_dump(value, default_flow_style=True, width=math.inf).strip()
+
+
+def panda_limits() -> dict:
+    robot = Robot('panda', URDF)
+    return {'joint_names': robot.joint_names, 'lower': robot.lower.tolist(), 'upper': robot.upper.tolist(),
+            'velocity_limit': robot.velocity_limit.tolist()}
+
+
+# -- messages --------------------------------------------------------------------------------------
+
+def test_labelled_table_round_trip():
+    values = np.arange(12.0).reshape(3, 4)
+    table = read_table(table_msg(('x', 'y', 'rz'), ('value', 'j1', 'j2', 'j3'), values, rotation=0))
+    assert table.rows == ('x', 'y', 'rz') and table.columns[1:] == ('j1', 'j2', 'j3') and table.rotation == 0
+    assert np.array_equal(table.values, values) and np.array_equal(table.column('value'), values[:, 0])
+    broken = table_msg(('x',), ('value',), np.zeros((1, 1)))
+    broken.data = [1.0, 2.0]
+    with pytest.raises(ValueError):
+        read_table(broken)
+
+
+# -- Robot, Scene, Task entities, Solver, simulated Driver -------------------------------------------------
+
+def test_robot_entity_maps_joints_by_name_and_reports_missing_ones(world):
+    robot = world.entity(RobotEntity, 'Robot_panda', robot='panda', urdf=URDF)
+    names = list(reversed(PANDA)) + ['panda_finger_joint1']
+    robot.inputs['measured'].deliver(JointState(name=names, position=[READY[n] for n in names[:-1]] + [0.04]), 'x')
+    robot.update(0.0)
+    out = robot.outputs['joint_state'].last
+    assert list(out.name) == PANDA and list(out.position) == PANDA_READY
+    robot.outputs['joint_state'].last = None
+    robot.inputs['measured'].deliver(JointState(name=PANDA[:6], position=PANDA_READY[:6]), 'x')
+    robot.update(0.01)
+    assert robot.outputs['joint_state'].last is None
+    assert world.spin_until(lambda: 'e_panda_joints_missing' in world.seen)
+
+
+def _program(world, *, setpoint: dict, weights=(1.0,)):
+    """Driver -> Robot -> Scene -> Task (VKC, CO, SPG, CC, Rows) -> Solver -> Driver."""
+    task = 'Approach'
+    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF, initial_names=PANDA,
+                          initial_positions=PANDA_READY)
+    robot = world.entity(RobotEntity, 'Robot_panda', robot='panda', urdf=URDF)
+    scene = world.entity(SceneEntity, 'Scene',
+                         robots=[flow({'name': 'panda', 'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}})],
+                         objects=[flow({'name': 'target', 'xyz': [0.45, 0.1, 0.3],
+                                        'frames': {'grasp': {'rpy': [math.pi, 0, 0]}}})],
+                         relations=[flow({'name': task, 'o1': 'target/grasp', 'o2': 'panda/tcp'})])
+    vkc = world.entity(VKCEntity, 'VKC', task=task, type='cartesian', o1='target/grasp', o2='panda/tcp')
+    co = world.entity(ConstraintOutputEntity, 'CO', task=task)
+    spg = world.entity(SetpointGeneratorEntity, 'SPG', task=task, tick_period=DT, **setpoint)
+    cc = world.entity(ConstraintControllerEntity, 'CC', task=task, tick_period=DT, kp=3.0, max_output=0.5)
+    rows = world.entity(ConstraintRowsEntity, 'Rows', task=task, weights=list(weights))
+    solver = world.entity(SolverEntity, 'Solver', kind='qp', period=DT, **panda_limits())
+    for wire in [(driver, 'joint_state', robot, 'measured'), (robot, 'joint_state', scene, 'joint_state_panda'),
+                 (scene, f'relation_{task}', vkc, 'relation'), (vkc, 'features', co, 'features'),
+                 (vkc, 'features', spg, 'features'), (co, 'output', cc, 'output'), (spg, 'setpoint', cc, 'setpoint'),
+                 (co, 'output', rows, 'output'), (cc, 'control', rows, 'control'), (rows, 'rows', solver, 'rows'),
+                 (scene, 'joint_state', solver, 'joint_state'), (solver, 'command', driver, 'command')]:
+        link(*wire)
+    return [driver, robot, scene, vkc, co, spg, cc, rows, solver]
+
+
+def run(entities, ticks: int, start: float = 0.0) -> float:
+    t = start
+    for k in range(ticks):
+        t = start + k * DT
+        for entity in entities:
+            entity.update(t)
+    return t
+
+
+def test_a_task_drives_the_simulated_robot_onto_the_grasp_frame(world):
+    entities = _program(world, setpoint={'kind': 'minimum_jerk', 'target': [0.0] * 6, 'target_is_pose': True,
+                                         'duration': 1.5})
+    driver, rows, solver, spg = entities[0], entities[7], entities[8], entities[5]
+    run(entities, 150)
+    assert 0.9 < spg.outputs['progress'].last.data <= 1.0
+    run(entities, 250, start=1.5)
+    state = rows.outputs['state'].last
+    assert state.task == 'Approach' and len(state.output) == 6
+    assert state.error_norm < 1e-4 and np.linalg.norm(state.output[:3]) < 1e-3
+    command = solver.outputs['command'].last
+    assert list(command.name) == PANDA and all(math.isfinite(v) for v in command.velocity)
+    assert solver.outputs['status'].last.active_tasks == ['Approach']
+    assert list(driver.outputs['joint_state'].last.name) == PANDA
+
+
+@pytest.mark.parametrize('chain', [
+    {'type': 'cartesian'}, {'type': 'cartesian', 'coordinates': 'log6'}, {'type': 'distance'},
+    {'type': 'joint', 'joints': ['panda_joint2', 'panda_joint4']}], ids=lambda c: c.get('coordinates', c['type']))
+def test_vkc_entity_computes_what_the_math_chain_computes_on_the_scene(world, chain):
+    from itasc_tasks.vkc import CartesianVKC, DistanceVKC, JointVKC
+    o1, o2 = 'target/grasp', 'panda/tcp'
+    scene = world.entity(SceneEntity, 'Scene',
+                         robots=[flow({'name': 'panda', 'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}})],
+                         objects=[flow({'name': 'target', 'xyz': [0.5, 0.1, 0.3], 'rpy': [3.0, 0.2, 0.1],
+                                        'frames': {'grasp': {'xyz': [0, 0, 0.05]}}})],
+                         relations=[flow({'name': 'T', 'o1': o1, 'o2': o2})])
+    vkc = world.entity(VKCEntity, 'VKC', task='T', o1=o1, o2=o2, **chain)
+    link(scene, 'joint_state' if chain['type'] == 'joint' else 'relation_T', vkc,
+         'joint_state' if chain['type'] == 'joint' else 'relation')
+    q = [0.1, -0.7, 0.2, -2.3, 0.1, 1.5, 0.7]
+    scene.inputs['joint_state_panda'].deliver(JointState(name=PANDA, position=q), 'robot')
+    scene.update(0.0)
+    vkc.update(0.0)
+    math_chain = {'cartesian': lambda: CartesianVKC(o1, o2, coordinates=chain.get('coordinates', 'xyz_log3')),
+                  'distance': lambda: DistanceVKC(o1, o2),
+                  'joint': lambda: JointVKC(chain.get('joints'))}[chain['type']]()
+    math_chain.compute(scene.scene)
+    features = read_table(vkc.outputs['features'].last)
+    assert features.rows == tuple(math_chain.names)
+    assert np.allclose(features.column('value'), math_chain.features, atol=1e-12)
+    assert np.allclose(features.matrix(), math_chain.jacobian, atol=1e-12)
+
+
+def test_setpoint_restarts_from_the_current_output_after_a_pause(world):
+    entities = _program(world, setpoint={'kind': 'minimum_jerk', 'target': [0.0] * 6, 'target_is_pose': True,
+                                         'duration': 2.0})
+    spg = entities[5]
+    run(entities, 50)
+    assert spg.outputs['progress'].last.data == pytest.approx(49 * DT / 2.0)
+    run(entities, 2, start=10.0)  # the Task was deactivated for 9.5 s
+    assert spg.outputs['progress'].last.data == pytest.approx(DT / 2.0)
+
+
+def test_controller_gains_switch_by_parameters_as_a_configuration_does(world):
+    cc = world.entity(ConstraintControllerEntity, 'CC', task='T', kp=1.0, ki=0.5)
+    from rclpy.parameter import Parameter
+    results = cc.set_parameters([Parameter('kp', value=8.0), Parameter('ki', value=0.0)])
+    assert all(r.successful for r in results)
+    assert (cc.controller.kp, cc.controller.ki) == (8.0, 0.0)
+    assert not cc.set_parameters([Parameter('kp', value=-1.0)])[0].successful
+    assert cc.controller.kp == 8.0
+
+
+def test_inequality_controller_bounds_the_output_velocity(world):
+    cc = world.entity(ConstraintControllerEntity, 'CC', task='T', kind='p', kp=5.0, inequality=True, lower=[0.15])
+    assert 'setpoint' not in cc.inputs
+    cc.inputs['output'].deliver(table_msg(('distance',), ('value', 'j1'), np.array([[0.1, 1.0]])), 'x')
+    cc.update(0.0)
+    control = read_table(cc.outputs['control'].last)
+    assert control.column('lower')[0] == pytest.approx(5.0 * (0.15 - 0.1)) and control.column('upper')[0] == math.inf
+
+
+def _rows(task: str, t: float, desired: float, *, joints=PANDA) -> ConstraintRows:
+    msg = ConstraintRows(task=task, rows=1, joint_names=list(joints), jacobian=[1.0] + [0.0] * (len(joints) - 1),
+                         desired=[desired], lower=[desired], upper=[desired], weights=[1.0])
+    msg.stamp = stamp(t)
+    return msg
+
+
+def _solver(world, kind: str = 'wdls'):
+    solver = world.entity(SolverEntity, 'Solver', kind=kind, period=DT, **panda_limits())
+    solver.inputs['joint_state'].deliver(JointState(name=PANDA, position=PANDA_READY), 'scene')
+    return solver
+
+
+def test_solver_commands_zero_and_raises_emergency_on_nan_rows(world):
+    solver = _solver(world)
+    solver.inputs['rows'].deliver(_rows('Bad', 0.0, math.nan), 'bad')
+    solver.update(0.0)
+    assert list(solver.outputs['command'].last.velocity) == [0.0] * 7
+    assert world.spin_until(lambda: 'e_emergency' in world.seen)
+
+
+def test_solver_uses_only_rows_of_this_tick_in_any_joint_order(world):
+    solver = _solver(world, kind='qp')
+    solver.inputs['rows'].deliver(_rows('Old', 0.0, 0.3), 'old')
+    solver.inputs['rows'].deliver(_rows('New', 1.0, 0.2, joints=list(reversed(PANDA))), 'new')
+    solver.update(0.99)
+    solver.update(1.0)
+    assert solver.outputs['status'].last.active_tasks == ['New']
+    assert solver.outputs['command'].last.velocity[6] == pytest.approx(0.2, abs=1e-4)  # panda_joint7
+
+
+def test_solver_raises_an_event_when_it_saturates(world):
+    solver = _solver(world)
+    solver.inputs['rows'].deliver(_rows('Fast', 0.0, 100.0), 'fast')
+    solver.update(0.0)
+    assert solver.outputs['status'].last.status == 'saturated'
+    assert max(abs(v) for v in solver.outputs['command'].last.velocity) <= 2.175 + 1e-9
+    assert world.spin_until(lambda: 'e_solver_saturated' in world.seen)
+
+
+def test_simulated_robot_respects_velocity_and_position_limits(world):
+    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF, initial_names=PANDA,
+                          initial_positions=PANDA_READY)
+    driver.inputs['command'].deliver(JointState(name=['panda_joint4', 'other'], velocity=[50.0, 1.0]), 'x')
+    for k in range(15):  # 1.4 s at 2.175 rad/s: beyond the limit
+        driver.update(k * 0.1)
+    state = driver.outputs['joint_state'].last
+    assert state.velocity[3] == pytest.approx(2.175)
+    assert state.position[3] == pytest.approx(-0.0698)  # panda_joint4's upper limit
+    assert state.position[:3] == pytest.approx(PANDA_READY[:3])
+
+
+def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
+    sensor = world.entity(PoseSensor, 'Sensor_cup', object='cup', topic=f'{world.ctx.namespace}/cup_pose')
+    scene = world.entity(SceneEntity, 'Scene', robots=[flow({'name': 'panda', 'urdf': URDF})],
+                         objects=[flow({'name': 'cup', 'sensed': True})],
+                         relations=[flow({'name': 'Look', 'o1': 'world', 'o2': 'cup'})])
+    link(sensor, 'pose', scene, 'pose_cup')
+    scene.inputs['joint_state_panda'].deliver(JointState(name=PANDA, position=PANDA_READY), 'robot')
+    publisher = world.observer.create_publisher(PoseStamped, f'{world.ctx.namespace}/cup_pose', 10)
+    pose = PoseStamped()
+    pose.header.frame_id = 'world'
+    pose.pose.position.x, pose.pose.orientation.w = 0.7, 1.0
+    assert world.spin_until(lambda: publisher.get_subscription_count() > 0)
+    publisher.publish(pose)
+    assert world.spin_until(lambda: sensor.latest is not None)
+    sensor.update(0.0)
+    scene.update(0.0)
+    relation = read_table(scene.outputs['relation_Look'].last)
+    assert relation.column('value')[:3] == pytest.approx([0.7, 0.0, 0.0])
+
+
+# -- the ROS 2 driver adapter against a driver that speaks only standard messages ----------------------------
+
+def test_ros2_control_adapter_maps_joints_by_name_and_commands_in_controller_order(world):
+    ns = world.ctx.namespace
+    fake = world.add(FakeRos2Control(joints=PANDA, initial=PANDA_READY, extra_joint='panda_finger_joint1',
+                                     controller=f'{ns.strip("/")}/velocity_controller', interface='velocity',
+                                     rate=100.0, joint_states=f'{ns}/joint_states'))
+    adapter = world.entity(Ros2ControlAdapter, 'Driver_panda', robot='panda', joints=PANDA,
+                           joint_states_topic=f'{ns}/joint_states', command_topic=f'{ns}/velocity_controller/commands')
+    assert world.spin_until(lambda: adapter.measured is not None)
+    adapter.update(0.0)
+    assert list(adapter.outputs['joint_state'].last.name) == PANDA
+    assert list(adapter.outputs['joint_state'].last.position) == pytest.approx(PANDA_READY)
+    velocity = [0.1 * (i + 1) for i in range(7)]
+    adapter.inputs['command'].deliver(JointState(name=list(reversed(PANDA)), velocity=list(reversed(velocity))), 's')
+    adapter.update(0.01)
+    assert world.spin_until(lambda: [fake.velocities[j] for j in PANDA] == pytest.approx(velocity))
+    adapter.disengage()
+    assert world.spin_until(lambda: all(v == 0.0 for v in fake.velocities.values()))
+
+
+def test_ros2_control_adapter_integrates_positions_for_a_position_controller(world):
+    ns = world.ctx.namespace
+    received: list[Float64MultiArray] = []
+    world.observer.create_subscription(Float64MultiArray, f'{ns}/position_controller/commands', received.append, 10)
+    adapter = world.entity(Ros2ControlAdapter, 'Driver_panda', robot='panda', joints=PANDA, interface='position',
+                           joint_states_topic=f'{ns}/joint_states', command_topic=f'{ns}/position_controller/commands')
+    adapter._on_state(JointState(name=PANDA, position=PANDA_READY))
+    adapter.inputs['command'].deliver(JointState(name=PANDA, velocity=[1.0] + [0.0] * 6), 's')
+    assert world.spin_until(lambda: adapter._publisher.get_subscription_count() > 0)
+    for k in range(3):
+        adapter.update(k * 0.1)
+    assert world.spin_until(lambda: len(received) == 3)
+    assert received[-1].data[0] == pytest.approx(PANDA_READY[0] + 0.2)
