@@ -5,8 +5,8 @@ SHELL := /bin/bash
 ROOT := $(abspath $(dir $(lastword $(MAKEFILE_LIST))))
 
 # The default application of `make demo`.
-DEMO_APP ?= pattern_demo
-DEMO_ARGS ?= --duration 5
+DEMO_APP ?= approach_object
+DEMO_ARGS ?= --duration 20
 APP ?=
 ARGS ?=
 MCAP ?=

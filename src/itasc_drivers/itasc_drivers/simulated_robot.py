@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import JointState
 
 from itasc_core.communication.ports import PortSpec
@@ -113,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     node.create_timer(1.0 / args.rate, lambda: node.update(time.monotonic() - start))
     try:
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         node.destroy_node()
