@@ -9,7 +9,6 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import pytest
 from rosbags.highlevel import AnyReader
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']

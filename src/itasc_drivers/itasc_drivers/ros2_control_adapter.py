@@ -29,8 +29,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
-from itasc_core.itasc.entities.robot_entity import joint_positions
-from itasc_core.itasc.entities.solver_entity import PROGRAM_VELOCITIES
+
+from .ports import driver_ports
 
 __all__ = ['Ros2ControlAdapter']
 
@@ -51,12 +51,7 @@ class Ros2ControlAdapter(FunctionalEntity):
 
     @classmethod
     def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return [
-            PortSpec(name='command', direction='input', msg_type=JointState, type='joint_velocities',
-                     semantics=PROGRAM_VELOCITIES),
-            PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
-                     semantics=joint_positions(params['robot'])),
-        ]
+        return driver_ports(params['robot'])
 
     def validate_parameters(self, params: dict[str, Any]) -> str | None:
         if params['interface'] not in INTERFACES:

@@ -24,9 +24,9 @@ from sensor_msgs.msg import JointState
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.entity import CompositeContext
-from itasc_core.itasc.entities.robot_entity import joint_positions
-from itasc_core.itasc.entities.solver_entity import PROGRAM_VELOCITIES
 from itasc_core.itasc.robot import Robot
+
+from .ports import driver_ports
 
 __all__ = ['SimulatedRobot', 'main']
 
@@ -44,12 +44,7 @@ class SimulatedRobot(FunctionalEntity):
 
     @classmethod
     def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return [
-            PortSpec(name='command', direction='input', msg_type=JointState, type='joint_velocities',
-                     semantics=PROGRAM_VELOCITIES),
-            PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
-                     semantics=joint_positions(params['robot'])),
-        ]
+        return driver_ports(params['robot'])
 
     def configure(self, params: dict[str, Any]) -> None:
         if getattr(self, 'robot', None) is not None:

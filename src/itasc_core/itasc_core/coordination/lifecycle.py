@@ -47,6 +47,26 @@ SAFETY_EVENT = 'e_emergency'
 Raise = Callable[[str, bool], None]
 
 
+#: Events raised on entering a state: to this composite's entities ('own'), to every child's
+#: Coordinator ('children'), or to the parent's Coordinator ('parent'), e.g. ``e_<composite>_deploy``.
+_ENTRY_EVENTS: dict[str, tuple[tuple[str, str], ...]] = {
+    'DeployEntities': (('own', 'deploy'),),
+    'ConfigureEntities': (('own', 'configure_entities'), ('children', 'configure')),
+    'ConnectEntities': (('own', 'connect'),),
+    'NotifyConfigured': (('parent', 'configured'),),
+    'Starting': (('own', 'scheduler_initialize'), ('children', 'start')),
+    'Started': (('parent', 'started'),),
+    'PreRunning': (('children', 'run'), ('own', 'scheduler_activate')),
+    'Running': (('parent', 'running'),),
+    'Stopping': (('children', 'stop'),),
+    'Disengage': (('own', 'disengage'),),
+    'CleanupComputation': (('own', 'cleanup_computation'),),
+    'Cleanup': (('own', 'cleanup'),),
+    'NotifyStopped': (('parent', 'stopped'),),
+    'Safety': (('own', 'safety'),),
+}
+
+
 class _DottedState(NestedState):
     separator = '.'
 
@@ -298,50 +318,26 @@ class LifecycleFsm:
         add(f'{stopped}.Cleanup', f'{stopped}.NotifyStopped', ev('cleaned'))
 
     def _entry_actions(self, state: str) -> None:
-        """Events raised on entering ``state``: -ing states act on this composite, then children."""
-        ev, kids, up = self.ev, self.children, self._raise
+        """Raise the events of ``state`` (Fig. 5): -ing states act on this composite, then on its
+        children; -ed states notify the parent."""
         leaf = state.rsplit('.', 1)[-1]
-        own = lambda suffix: up(ev(suffix), False)  # noqa: E731
-        to_children = lambda suffix: [up(ev(suffix, k), False) for k in kids]  # noqa: E731
-        notify = lambda suffix: up(ev(suffix), True)  # noqa: E731
-        if leaf == 'DeployEntities':
-            own('deploy')
-        elif leaf == 'ConfigureEntities':
-            own('configure_entities')
-            to_children('configure')
-        elif leaf == 'ConnectEntities':
-            own('connect')
-        elif leaf == 'NotifyConfigured':
-            notify('configured')
-        elif leaf == 'Starting':
-            own('scheduler_initialize')
-            to_children('start')
-        elif leaf == 'Started':
-            notify('started')
-        elif leaf == 'PreRunning':
-            to_children('run')
-            own('scheduler_activate')
-        elif state == 'Active.Run.Running':
-            notify('running')
-        elif state.startswith('Active.Run.Running.') and self._running is not None:
-            for s in self._running.states:
+        if state.startswith('Active.Run.Running.'):  # a state of the application's sub-FSM
+            for s in self._running.states if self._running is not None else ():
                 if s.name == leaf:
                     for name in s.raise_on_entry:
-                        up(name, False)
-        elif leaf == 'Stopping':
-            to_children('stop')
-        elif leaf == 'Disengage':
-            own('disengage')
-        elif leaf == 'CleanupComputation':
-            own('cleanup_computation')
-        elif leaf == 'Cleanup':
-            own('cleanup')
-        elif leaf == 'NotifyStopped':
-            notify('stopped')
-        elif leaf == 'Safety':
-            own('safety')
+                        self._raise(name, False)
+            return
+        for target, suffix in _ENTRY_EVENTS.get(leaf, ()):
+            if target == 'own':
+                self._raise(self.ev(suffix), False)
+            elif target == 'children':
+                for child in self.children:
+                    self._raise(self.ev(suffix, child), False)
+            else:
+                self._raise(self.ev(suffix), True)
+        if state == 'Safety':
             for name in self._safety_to_parent:
-                up(name, True)
+                self._raise(name, True)
 
     @property
     def running_substate(self) -> str | None:
