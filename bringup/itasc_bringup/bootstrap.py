@@ -26,7 +26,8 @@ STOP_TIMEOUT = 20.0
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='bootstrap', description='Run an iTaSC application model.')
     parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
-    parser.add_argument('--duration', type=float, default=None, help='stop after SECONDS in Running')
+    parser.add_argument('--duration', type=float, default=None,
+                        help='stop SECONDS after the root reached Running (or Safety)')
     parser.add_argument('--record', metavar='FILE.mcap', default=None, help='record the run to MCAP')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--rate', type=float, default=None, help='override the Timer rate (Hz)')
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             executor.spin_once(timeout_sec=0.02)
             runtime.reap()
             state = coordinator.state
-            if running_since is None and state.startswith('Active.Run.Running'):
+            if running_since is None and (state.startswith('Active.Run.Running') or state == 'Safety'):
                 running_since = time.monotonic()
             due = args.duration is not None and running_since is not None \
                 and time.monotonic() - running_since >= args.duration

@@ -62,3 +62,22 @@ def test_unknown_application_exits_2_without_traceback():
     assert result.returncode == 2
     assert result.stderr.startswith('error: no_such_app') and 'pattern_demo' in result.stderr
     assert 'Traceback' not in result.stderr
+
+
+def test_a_dead_composite_process_puts_its_parent_in_safety_and_the_stop_stays_orderly():
+    process = subprocess.Popen([*BOOTSTRAP, 'pattern_demo', '--deploy', 'per-composite', '--duration', '4'],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    for line in process.stdout:
+        lines.append(line)
+        if line.startswith('[state] app: Active.Run.Running'):
+            break
+    killed = subprocess.run(['pkill', '-9', '-f', 'itasc_core.composition.host .*--namespace /app/program/hold'])
+    assert killed.returncode == 0
+    out, err = process.communicate(timeout=120)
+    lines += out.splitlines(keepends=True)
+    assert process.returncode == 0, err[-2000:]
+    sequences = state_sequences(''.join(lines))
+    assert 'Safety' in sequences['program']
+    assert sequences['program'][-1].startswith('Active.Stop.Stopped')
+    assert 'process of composite hold died' in err

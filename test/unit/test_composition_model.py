@@ -75,5 +75,7 @@ def test_monitor_conditions():
     assert Condition('outside', low=-1, high=1).holds([2.0], age=0)
     assert Condition('nonfinite').holds([math.nan], age=0)
     assert Condition('stale', timeout=0.1).holds(None, age=0.2)
+    assert not Condition('stale', timeout=0.1, grace=5.0).holds(None, age=0.2, seen=False)  # still coming up
+    assert Condition('stale', timeout=0.1, grace=5.0).holds(None, age=0.2, seen=True)  # went silent
     msg = Float64MultiArray(data=[1.0, 2.0])
     assert read_field(msg, 'data[1]') == [2.0] and read_field(msg, 'data') == [1.0, 2.0]

@@ -67,7 +67,23 @@ def to_composition(app: Application) -> CompositeModel:
                         _connect(f'{program.name}.command', f'Driver_{d.robot}.command')]
     connections += [_connect(f'Sensor_{s.object}.pose', f'{program.name}.pose_{s.object}') for s in app.sensors]
     return CompositeModel(name=app.name, rate=app.rate, entities=[*drivers, *sensors, _program(app)],
-                          connections=connections)
+                          connections=connections, monitors=[m for d in app.drivers for m in _watchdogs(d, app.rate)])
+
+
+#: How long a Driver may take to report its first joint state once the application runs.
+DRIVER_GRACE = 5.0
+
+
+def _watchdogs(driver: Driver, rate: float) -> list[MonitorModel]:
+    """A silent driver or non-finite joint positions put the application in Safety (its Driver
+    then commands zero velocity)."""
+    watch = f'Driver_{driver.robot}.joint_state'
+    return [
+        MonitorModel(name=f'Driver_{driver.robot}_silent', watch=watch, condition='stale',
+                     timeout=max(0.25, 20.0 / rate), grace=DRIVER_GRACE, event='e_emergency'),
+        MonitorModel(name=f'Driver_{driver.robot}_nonfinite', watch=watch, field='position',
+                     condition='nonfinite', event='e_emergency'),
+    ]
 
 
 def _connect(source: str, target: str) -> ConnectionModel:

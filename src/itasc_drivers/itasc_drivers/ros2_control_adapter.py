@@ -74,6 +74,7 @@ class Ros2ControlAdapter(FunctionalEntity):
         msg_type = JointTrajectory if self.interface == 'trajectory' else Float64MultiArray
         self._publisher = self.create_publisher(msg_type, params['command_topic'], 10)
         self.measured: np.ndarray | None = None
+        self._fresh = False
         self._target: np.ndarray | None = None
         self._last_t: float | None = None
 
@@ -81,15 +82,18 @@ class Ros2ControlAdapter(FunctionalEntity):
         by_name = dict(zip(msg.name, msg.position))
         if all(j in by_name for j in self.joints):
             self.measured = np.array([by_name[j] for j in self.joints], dtype=float)
+            self._fresh = True
 
     def update(self, t: float) -> None:
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
         if self.measured is None:
             return  # nothing to report, nothing to command before the driver reported
-        state = JointState(name=self.joints, position=self.measured.tolist())
-        state.header.stamp = self.get_clock().now().to_msg()
-        self.outputs['joint_state'].write(state)
+        if self._fresh:  # only what the driver reported: a silent driver shows as stale data
+            self._fresh = False
+            state = JointState(name=self.joints, position=self.measured.tolist())
+            state.header.stamp = self.get_clock().now().to_msg()
+            self.outputs['joint_state'].write(state)
         command = self.inputs['command'].latest
         velocity = np.zeros(len(self.joints))
         if command is not None:

@@ -93,6 +93,9 @@ class Composer(Entity):
         self.children: dict[str, Composer | None] = {}  # None: hosted in another process
         self._pending: list[ConnectionModel] = []
         self._child_raisers: dict[str, EventRaiser] = {}
+        self._watchdog = None
+        self._dead: set[str] = set()
+        self._dead_stops: dict[str, str] = {}  # stop command -> dead child
         c = context.name
         self._steps = {
             f'e_{c}_deploy': self.deploy,
@@ -109,12 +112,15 @@ class Composer(Entity):
 
     def _accepts(self, name: str) -> bool:
         return name in self._steps or (bool(self._pending) and name.endswith('_configured')) \
-            or name.startswith(f'e_{self.composite.name}_bind')
+            or name.startswith(f'e_{self.composite.name}_bind') or name in self._dead_stops
 
     def _on_event(self, msg) -> None:
         if msg.name == f'e_{self.composite.name}_bind':
             port, _, topic = msg.detail.partition('|')
             self.bind_export(port, topic)
+            return
+        if msg.name in self._dead_stops:
+            self.raise_event(f'e_{self._dead_stops[msg.name]}_stopped', detail='its process had died')
             return
         step = self._steps.get(msg.name)
         if step is not None:
@@ -185,6 +191,8 @@ class Composer(Entity):
                 self.runtime.spawn(model=entity, namespace=context.namespace,
                                    parent_namespace=self.composite.namespace)
                 self.children[entity.name] = None
+                if self._watchdog is None:
+                    self._watchdog = self.create_timer(0.1, self._watch_processes)
                 if scheduled:
                     self.scheduler.add_remote_child(entity.name, context.namespace)
             else:
@@ -205,7 +213,7 @@ class Composer(Entity):
         low, high = monitor.band or (float('-inf'), float('inf'))
         parameters = {
             'field': monitor.field, 'condition': monitor.condition, 'threshold': monitor.threshold,
-            'low': low, 'high': high, 'timeout': monitor.timeout, 'event': monitor.event,
+            'low': low, 'high': high, 'timeout': monitor.timeout, 'grace': monitor.grace, 'event': monitor.event,
             'enabled': monitor.enabled, 'enable_on': monitor.enable_on or [''],
             'disable_on': monitor.disable_on or [''],
         }
@@ -309,11 +317,27 @@ class Composer(Entity):
                 remaining.append(connection)
         self._pending = remaining
 
+    def _watch_processes(self) -> None:
+        """A child composite whose process died is a fault of this composite (Safety); when the
+        Coordinator later commands it to stop, the Composer answers for it, so that this composite
+        can still stop in order."""
+        for name, child in self.children.items():
+            process = self.runtime.process(f'{self.composite.namespace}/{name}')
+            if child is None and process is not None and process.poll() not in (None, 0) and name not in self._dead:
+                self._dead.add(name)
+                self._dead_stops[f'e_{name}_stop'] = name
+                detail = f'process of composite {name} died (exit code {process.returncode})'
+                self.get_logger().error(detail)
+                self.raise_event('e_emergency', priority=True, detail=detail)
+
     # -- Stopped ----------------------------------------------------------------------------------------
 
     def cleanup_computation(self) -> None:
         """Destroy the Functional Entities, child composites included (CleanupComputation)."""
         retired: list = list(self.entities.values())
+        if self._watchdog is not None:
+            self.destroy_timer(self._watchdog)
+            self._watchdog = None
         for name, child in self.children.items():
             if child is None:
                 self.runtime.join(f'{self.composite.namespace}/{name}')

@@ -61,6 +61,8 @@ class MonitorModel(_Strict):
     threshold: float = 0.0
     band: tuple[float, float] | None = None
     timeout: float = Field(default=0.5, gt=0)
+    #: ``stale``: how long the first sample may take after the Monitor is switched on.
+    grace: float = Field(default=0.0, ge=0)
     event: str = Field(pattern=r'^e_[A-Za-z0-9_]+$')
     enabled: bool = True
     enable_on: list[str] = Field(default_factory=list)

@@ -30,10 +30,12 @@ class Condition:
     low: float = -math.inf
     high: float = math.inf
     timeout: float = 0.5
+    #: For ``stale``: how long the first sample may take (a driver still coming up).
+    grace: float = 0.0
 
-    def holds(self, values: Iterable[float] | None, *, age: float) -> bool:
+    def holds(self, values: Iterable[float] | None, *, age: float, seen: bool = True) -> bool:
         if self.kind == 'stale':
-            return age > self.timeout
+            return age > (self.timeout if seen else max(self.timeout, self.grace))
         if values is None:
             return False
         values = list(values)
@@ -72,6 +74,7 @@ class Monitor(FunctionalEntity):
         'low': -math.inf,
         'high': math.inf,
         'timeout': 0.5,
+        'grace': 0.0,
         'event': 'e_monitor',
         'enabled': True,
         'enable_on': [''],
@@ -86,7 +89,7 @@ class Monitor(FunctionalEntity):
         self._watch_spec = watch
         super().__init__(name, composite=composite, parameters=parameters)
         self._holding = False
-        self._since = time.monotonic()
+        self._since: float | None = None  # staleness is measured from the first tick on
         self._seen = 0
         self.raised = 0
         self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._switch,
@@ -101,7 +104,8 @@ class Monitor(FunctionalEntity):
 
     def configure(self, params: dict[str, Any]) -> None:
         self.condition = Condition(kind=params['condition'], threshold=params['threshold'],
-                                   low=params['low'], high=params['high'], timeout=params['timeout'])
+                                   low=params['low'], high=params['high'], timeout=params['timeout'],
+                                   grace=params['grace'])
         self.enabled = bool(params['enabled'])
         self.event = params['event']
         self.field = params['field']
@@ -114,6 +118,10 @@ class Monitor(FunctionalEntity):
     def _switch(self, msg) -> None:
         self.enabled = msg.name in self._on
         self._holding = False
+        self._since = None
+
+    def start(self) -> None:
+        self._since = None
 
     @property
     def watch(self) -> InputPort:
@@ -126,10 +134,11 @@ class Monitor(FunctionalEntity):
             return
         port = self.watch
         now = time.monotonic()
-        if port.received != self._seen:
+        if port.received != self._seen or self._since is None:
             self._seen, self._since = port.received, now
-        values = read_field(port.latest, self.field) if port.latest is not None else None
-        holds = self.condition.holds(values, age=now - self._since)
+        needs_values = self.condition.kind != 'stale' and port.latest is not None
+        values = read_field(port.latest, self.field) if needs_values else None
+        holds = self.condition.holds(values, age=now - self._since, seen=port.received > 0)
         if holds and not self._holding:
             self.raised += 1
             self.raise_event(self.event, detail=f'{self.entity_name}: {self.condition.kind} on {self.field or "value"}')
