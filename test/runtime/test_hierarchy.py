@@ -148,7 +148,7 @@ def test_emergency_raised_by_a_functional_entity_at_the_deepest_level():
     try:
         h.start()
         assert h.spin_until(lambda: h.coordinators.get('T1') is not None and h.state('T1') == 'Safety')
-        assert h.state('T2').startswith('Active.Run.Running')
+        assert h.spin_until(lambda: h.state('T2').startswith('Active.Run.Running'), timeout=2)  # T2 unaffected
         ticks = h.composer.children['program'].children['T1'].scheduler.ticks
         h.spin_for(0.2)
         assert h.composer.children['program'].children['T1'].scheduler.ticks == ticks  # nothing computes
@@ -192,5 +192,20 @@ def test_task_added_while_running_reaches_running_and_others_never_leave_it():
         h.raise_event('e_root_stop')
         assert h.spin_until(lambda: h.state('root').endswith('NotifyStopped'))
         assert h.states('T3')[-1] == 'Active.Stop.Stopped.NotifyStopped'
+    finally:
+        h.close()
+
+
+def test_inactive_entities_compute_nothing_until_activated():
+    h = Hierarchy(model(inactive=['T2']))
+    try:
+        h.start()
+        assert h.spin_until(lambda: all_running(h))
+        probes.CALLS.clear()
+        h.spin_for(0.1)
+        assert probes.CALLS and not any('/T2/' in name for _, name in probes.CALLS)
+        h.raise_event('e_T2_activate', '/root/program')
+        h.spin_for(0.1)
+        assert any('/T2/' in name for _, name in probes.CALLS)
     finally:
         h.close()

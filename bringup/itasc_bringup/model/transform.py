@@ -142,6 +142,7 @@ def _program(app: Application) -> CompositeModel:
     return CompositeModel(
         name=program.name,
         entities=[*robot_entities, _scene(app), *(_task(program, t, 1.0 / app.rate) for t in tasks), _solver(app)],
+        inactive=_initially_inactive(program),
         connections=connections,
         exports=exports,
         configurations=monitor_settings,
@@ -175,6 +176,14 @@ def _solver(app: Application) -> EntityModel:
         'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
         'damping': solver.damping, 'regularization': solver.regularization,
         'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+
+
+def _initially_inactive(program: Program) -> list[str]:
+    """Tasks the initial state of the Running sub-FSM leaves off compute nothing before it is
+    entered either (no conflicting commands during PreRunning)."""
+    fsm = program.running
+    initial = fsm.states[fsm.initial].tasks if fsm is not None else None
+    return [] if initial is None else [t.name for t in program.tasks if t.name not in initial]
 
 
 def _initially_enabled(program: Program, name: str, enabled: bool) -> bool:

@@ -185,6 +185,7 @@ class Composer(Entity):
 
     def _deploy_entity(self, entity: EntityModel | CompositeModel, *, index: int | None = None) -> None:
         scheduled = entity.name in self.model.schedule_order()
+        enabled = entity.name not in self.model.inactive
         if isinstance(entity, CompositeModel):
             context = self.composite.child(entity.name)
             if self.runtime.mode == 'per-composite':
@@ -194,19 +195,19 @@ class Composer(Entity):
                 if self._watchdog is None:
                     self._watchdog = self.create_timer(0.1, self._watch_processes)
                 if scheduled:
-                    self.scheduler.add_remote_child(entity.name, context.namespace)
+                    self.scheduler.add_remote_child(entity.name, context.namespace, enabled=enabled)
             else:
                 child = bring_up(model=entity, context=context, runtime=self.runtime)
                 self.children[entity.name] = child
                 if scheduled:
-                    self.scheduler.add_child(entity.name, child)
+                    self.scheduler.add_child(entity.name, child, enabled=enabled)
             return
         cls = resolve_kind(entity.kind)
         node = cls(entity.name, composite=self.composite, parameters=entity.parameters)
         self.entities[entity.name] = node
         self.runtime.add(node)
         if scheduled:
-            self.scheduler.add_entity(node, index=index)
+            self.scheduler.add_entity(node, index=index, enabled=enabled)
 
     def _deploy_monitor(self, monitor: MonitorModel) -> None:
         watched, _ = port_of(self.model, self.composite.namespace, monitor.watch)

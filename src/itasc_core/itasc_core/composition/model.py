@@ -128,6 +128,8 @@ class CompositeModel(_Strict):
     name: str = Field(pattern=_NAME)
     entities: list['EntityOrComposite'] = Field(default_factory=list)
     schedule: list[str] | None = None
+    #: Scheduled entities that start switched off (``e_<entity>_activate`` switches them on).
+    inactive: list[str] = Field(default_factory=list)
     connections: list[ConnectionModel] = Field(default_factory=list)
     exports: dict[str, str] = Field(default_factory=dict)
     configurations: dict[str, dict[str, dict[str, Any]]] = Field(default_factory=dict)
@@ -146,7 +148,7 @@ class CompositeModel(_Strict):
         if duplicates:
             raise ValueError(f'duplicate entity names {duplicates}')
         entity_names = {e.name for e in self.entities}
-        for name in self.schedule or []:
+        for name in [*(self.schedule or []), *self.inactive]:
             if name not in entity_names:
                 raise ValueError(f"schedule names unknown entity '{name}'; known: {sorted(entity_names)}")
         for c in self.connections:

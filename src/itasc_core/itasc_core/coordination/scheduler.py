@@ -59,18 +59,18 @@ class Scheduler(Entity):
 
     # -- structure, set by the Composer ------------------------------------------------------------
 
-    def add_entity(self, entity: FunctionalEntity, *, index: int | None = None) -> None:
-        self._insert(_Item(entity.entity_name, entity.update, entity), index)
+    def add_entity(self, entity: FunctionalEntity, *, index: int | None = None, enabled: bool = True) -> None:
+        self._insert(_Item(entity.entity_name, entity.update, entity, enabled), index)
 
-    def add_child(self, name: str, child: 'Scheduler') -> None:
-        self._insert(_Item(name, child.tick), None)
+    def add_child(self, name: str, child: 'Scheduler', *, enabled: bool = True) -> None:
+        self._insert(_Item(name, child.tick, enabled=enabled), None)
 
-    def add_remote_child(self, name: str, namespace: str) -> None:
+    def add_remote_child(self, name: str, namespace: str, *, enabled: bool = True) -> None:
         publisher = self.create_publisher(Float64, f'{namespace}/trigger', DATA_QOS)
 
         def trigger(t: float) -> None:
             publisher.publish(Float64(data=t))
-        self._insert(_Item(name, trigger), None)
+        self._insert(_Item(name, trigger, enabled=enabled), None)
 
     def add_monitor(self, monitor: Monitor) -> None:
         self._monitors.append(monitor)
