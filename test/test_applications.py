@@ -36,7 +36,7 @@ def of_type(messages, msgtype: str) -> dict[str, list]:
             if msgs and msgs[0][0] == msgtype}
 
 
-def check_program_outcome(messages) -> None:
+def check_program_outcome(messages, root: str) -> None:
     states = defaultdict(list)
     for msgs in of_type(messages, 'itasc_msgs/msg/CoordinatorState').values():
         for msg in msgs:
@@ -61,14 +61,18 @@ def check_program_outcome(messages) -> None:
     joint_states = of_type(messages, 'sensor_msgs/msg/JointState')
     assert sum(len(m) for m in joint_states.values()) > 100
     events = [m.name for msgs in of_type(messages, 'itasc_msgs/msg/Event').values() for m in msgs]
-    assert 'e_max_pos_tracking_error_exc' in events or 'e_ApproachObject_arrived' in events
-    assert 'e_approach_object_stop' in events or any(e.endswith('_stop') for e in events)
+    # the whole bring-up and stop is in the recording, from the bootstrap's first command on
+    for event in (f'e_{root}_configure', 'e_itasc_deploy', 'e_ApproachObject_configure', 'e_ApproachObject_running',
+                  'e_ApproachObject_arrived', f'e_{root}_stop', 'e_itasc_stopped'):
+        assert event in events, event
+    for sequence in states.values():
+        assert sequence[0] == 'Active.Configure.Configuring.DeployEntities'
 
 
 def test_approach_object_end_to_end(tmp_path):
     mcap = tmp_path / 'approach_object.mcap'
     run_app('approach_object', mcap, duration=12)
-    check_program_outcome(read(mcap))
+    check_program_outcome(read(mcap), 'approach_object')
 
 
 def test_approach_object_through_a_separate_ros2_control_like_driver(tmp_path):
@@ -84,7 +88,7 @@ def test_approach_object_through_a_separate_ros2_control_like_driver(tmp_path):
     # The adapter mapped the external joint_states (reversed order, an extra finger joint) by name.
     states = of_type(messages, 'sensor_msgs/msg/JointState')['/approach_object_ros_driver/Driver_panda/joint_state']
     assert list(states[-1].name) == [f'panda_joint{i}' for i in range(1, 8)]
-    check_program_outcome(messages)
+    check_program_outcome(messages, 'approach_object_ros_driver')
 
 
 def test_mobile_manipulator_reaches_beyond_the_arm_with_the_base_moving(tmp_path):

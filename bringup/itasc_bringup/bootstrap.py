@@ -84,8 +84,13 @@ def main(argv: list[str] | None = None) -> int:
     composer = None
     try:
         if args.record:
+            from itasc_core.communication.qos import EVENT_QOS, STATE_QOS
+
             from .recording.recorder import Recorder
             recorder = Recorder(path=args.record, prefix=root.namespace)
+            for path, _ in walk(model):  # every event of the bring-up, not only those after discovery
+                recorder.record(f'{path}/events', 'itasc_msgs/msg/Event', qos=EVENT_QOS)
+                recorder.record(f'{path}/state', 'itasc_msgs/msg/CoordinatorState', qos=STATE_QOS)
             executor.add_node(recorder)
         raiser = EventRaiser(node, topic=root.events_topic)
         composer = bring_up(model=model, context=root, runtime=runtime)

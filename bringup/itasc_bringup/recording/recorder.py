@@ -135,7 +135,7 @@ class Recorder(Node):
             if len(types) > 1:
                 self.get_logger().warning(
                     f'{topic} has several types {types}; recording {types[0]}')
-            self._subscribe(topic, types[0], publishers)
+            self._subscribe_discovered(topic, types[0], publishers)
         if time.monotonic() - self._last_flush >= self._flush_period:
             self._last_flush = time.monotonic()
             with self._lock:
@@ -153,7 +153,19 @@ class Recorder(Node):
                          else ReliabilityPolicy.RELIABLE),
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
-    def _subscribe(self, topic: str, type_name: str, publishers: list) -> None:
+    def record(self, topic: str, type_name: str, *, qos: QoSProfile) -> None:
+        """Record ``topic`` from now on, before any publisher exists (e.g. a composite's event and
+        state topics, known from the model, so that no event of the bring-up is missed)."""
+        if topic not in self.topics:
+            self._subscribe(topic, type_name, qos=qos, offered=[qos], type_hash='')
+
+    def _subscribe_discovered(self, topic: str, type_name: str, publishers: list) -> None:
+        type_hash = str(publishers[0].topic_type_hash)
+        self._subscribe(topic, type_name, qos=self._qos(publishers), offered=[p.qos_profile for p in publishers],
+                        type_hash='' if type_hash == 'INVALID' else type_hash)
+
+    def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile],
+                   type_hash: str) -> None:
         try:
             msg_class = _import_message(type_name)
             encoding, definition = full_definition(type_name)
@@ -161,9 +173,7 @@ class Recorder(Node):
             self._skipped.add(topic)
             self.get_logger().warning(f'not recording {topic} ({type_name}): {err}')
             return
-        type_hash = str(publishers[0].topic_type_hash)
-        metadata = {'offered_qos_profiles': qos_profiles_yaml(p.qos_profile for p in publishers),
-                    'topic_type_hash': '' if type_hash == 'INVALID' else type_hash}
+        metadata = {'offered_qos_profiles': qos_profiles_yaml(offered), 'topic_type_hash': type_hash}
         with self._lock:
             if self._closed:
                 return
@@ -175,7 +185,7 @@ class Recorder(Node):
         self.topics[topic] = type_name
         self.counts[topic] = 0
         callback = functools.partial(self._write, topic, channel_id)
-        self.create_subscription(msg_class, topic, callback, self._qos(publishers), raw=True)
+        self.create_subscription(msg_class, topic, callback, qos, raw=True)
         self.get_logger().debug(f'recording {topic} ({type_name})')
 
     # ----------------------------------------------------------------- writing
