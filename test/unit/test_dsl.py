@@ -13,8 +13,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 import pytest
+import rclpy
 import yaml
 
+from itasc_bringup import bootstrap
 from itasc_bringup.apps import check_model, load_composition
 from itasc_core.communication.ports import check_connection
 from itasc_core.composition.loader import ModelError
@@ -245,7 +247,7 @@ def _write(directory: Path, name: str, model: Any) -> Path:
 
 
 @pytest.mark.parametrize('mutate, path, words', [case[1:] for case in BROKEN], ids=[case[0] for case in BROKEN])
-def test_broken_model_names_the_file_and_the_field(tmp_path, mutate, path, words):
+def test_broken_model_names_the_file_and_the_field(tmp_path, capsys, mutate, path, words):
     model = copy.deepcopy(BASE)
     mutate(model)
     file = _write(tmp_path, 'app.yaml', model)
@@ -253,6 +255,12 @@ def test_broken_model_names_the_file_and_the_field(tmp_path, mutate, path, words
     assert isinstance(err, ModelError), 'the broken model was accepted'
     assert (err.file, err.path) == (str(file), path), str(err)
     assert words in err.message, str(err)
+    # the bootstrap refuses it the same way: exit 2, the error on stderr, nothing started
+    with pytest.raises(SystemExit) as exit_info:
+        bootstrap.main([str(file)])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err == f'error: {err}\n'
+    assert not rclpy.ok()
 
 
 def test_the_base_of_the_broken_models_is_valid(tmp_path):
