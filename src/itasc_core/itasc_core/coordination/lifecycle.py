@@ -26,7 +26,7 @@ charts as classes, which fits data-driven charts less well.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Iterable
 
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
@@ -107,11 +107,6 @@ class _Transition:
     requires: frozenset[str]
 
 
-@dataclass
-class _Memory:
-    events: set[str] = field(default_factory=set)
-
-
 class LifecycleFsm:
     """The life-cycle FSM of one composite.
 
@@ -143,7 +138,8 @@ class LifecycleFsm:
         self._on_state = on_state
         self._running = running
         self._safety_to_parent = tuple(safety_to_parent)
-        self._memory = _Memory()
+        #: Event memory: the events that arrived since the current state was entered.
+        self._memory: set[str] = set()
         self._last_event = ''
         self._entered: list[str] = []
         self.state = 'Init'
@@ -151,6 +147,7 @@ class LifecycleFsm:
         self._adopted: dict[str, str] = {}
         self._add_transitions()
         self._stopping = next(t for t in self._transitions if t.source == 'Active.Stop.Stopping')
+        self._relevant = {SAFETY_EVENT}.union(*(t.requires for t in self._transitions))
         self._machine = _Machine(
             model=self,
             states=self._states(),
@@ -172,9 +169,7 @@ class LifecycleFsm:
 
     def is_relevant(self, event: str) -> bool:
         """Whether this FSM reacts to ``event`` (anything else is ignored without cost)."""
-        if event == SAFETY_EVENT or any(event in t.requires for t in self._transitions):
-            return True
-        return any(event.startswith(f'e_{child}_') for child in self._adopted)
+        return event in self._relevant
 
     # -- run-time re-composition ----------------------------------------------------------------------
 
@@ -186,6 +181,7 @@ class LifecycleFsm:
             return
         self.children = self.children + (child,)
         self._stopping.requires = self._stopping.requires | {self.ev('stopped', child)}
+        self._relevant |= {self.ev(suffix, child) for suffix in ('configured', 'started', 'running', 'stopped')}
         self._adopted[child] = 'configure'
         self._raise(self.ev('configure', child), False)
 
@@ -204,7 +200,7 @@ class LifecycleFsm:
 
     def process(self, event: str) -> bool:
         """Feed one event; returns True if it changed the state."""
-        self._memory.events.add(event)
+        self._memory.add(event)
         self._last_event = event
         if self._adopted:
             self._drive_adopted(event)
@@ -217,7 +213,7 @@ class LifecycleFsm:
         raise RuntimeError(f'{self.composite}: life-cycle FSM does not settle in {self.state}')
 
     def _guard(self, transition: _Transition) -> Callable[..., bool]:
-        return lambda _event_data: transition.requires <= self._memory.events
+        return lambda _event_data: transition.requires <= self._memory
 
     def _after_state_change(self, event_data) -> None:
         previous = event_data.transition.source
@@ -231,7 +227,7 @@ class LifecycleFsm:
     def _entry(self, path: str) -> Callable[..., None]:
         def on_enter(_event_data) -> None:
             # Event memory is cleared on every state entry (rFSM event-memory extension).
-            self._memory.events.clear()
+            self._memory.clear()
             self._entered.append(path)
         return on_enter
 
