@@ -121,6 +121,7 @@ def main(argv: list[str] | None = None) -> int:
                 raiser.raise_event(f'e_{root.name}_stop')
                 stop_sent_at = time.monotonic()
             if state.endswith('NotifyStopped'):
+                executor.spin_once(timeout_sec=0.05)  # let the status show the final state
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
