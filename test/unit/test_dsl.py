@@ -176,6 +176,12 @@ BROKEN = [
     ('unknown field', _set(P + 'tasks[0].gain', 3), P + 'tasks[0].gain', 'unknown field'),
     ('unknown task type', _set(P + 'tasks[0].type', 'spherical'), P + 'tasks[0].type', "'cartesian'"),
     ('task name with a space', _set(P + 'tasks[0].name', 'Approach Object'), P + 'tasks[0].name', 'pattern'),
+    ('limit of an unknown joint', _set(P + 'robots[0].limits', {'panda_joint9': {'velocity': 1.0}}),
+     P + 'robots[0].limits.panda_joint9', "no joint 'panda_joint9'"),
+    ('negative velocity limit', _set(P + 'robots[0].limits', {'panda_joint1': {'velocity': -1.0}}),
+     P + 'robots[0].limits.panda_joint1.velocity', 'greater than 0'),
+    ('lower limit above upper', _set(P + 'robots[0].limits', {'panda_joint1': {'lower': 1.0, 'upper': 0.5}}),
+     P + 'robots[0].limits.panda_joint1', 'must be below upper'),
     ('unknown link', _set(P + 'robots[0].frames[0].link', 'panda_palm'), P + 'robots[0].frames[0].link',
      "no link 'panda_palm'"),
     ('unknown object frame', _set(P + 'tasks[0].o1', 'target/handle'), P + 'tasks[0].o1',
@@ -340,3 +346,13 @@ def test_bootstrap_refuses_a_broken_model_with_exit_2_and_no_traceback(tmp_path)
     assert result.returncode == 2, result.stderr
     assert 'Traceback' not in result.stderr + result.stdout
     assert f'{file}: {P}tasks[0].controller.kp' in result.stderr
+
+
+def test_joint_limits_in_the_model_override_the_urdfs(tmp_path):
+    model = copy.deepcopy(BASE)
+    model['application']['program']['robots'][0]['limits'] = {'panda_joint1': {'lower': -0.5, 'velocity': 0.3}}
+    composition = load_composition(str(_write(tmp_path, 'app.yaml', model)))
+    solver = next(e for e in composition.entity('itasc').entities if e.name == 'Solver').parameters
+    i = solver['joint_names'].index('panda_joint1')
+    assert (solver['lower'][i], solver['velocity_limit'][i]) == (-0.5, 0.3)
+    assert solver['upper'][i] == pytest.approx(2.8973)  # from the URDF

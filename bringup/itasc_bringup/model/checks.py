@@ -115,6 +115,10 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
                               f"robot '{robot.name}' has no link '{frame.link}'; links: {links}")
         if frame.name in links:
             raise where.error(loc + ('frames', k, 'name'), f"'{frame.name}' is already a link of '{robot.name}'")
+    for joint in robot.limits:
+        if joint not in model.joint_names:
+            raise where.error(loc + ('limits', joint), f"robot '{robot.name}' has no joint '{joint}'; "
+                              f'joints: {model.joint_names}')
     return str(urdf), model
 
 

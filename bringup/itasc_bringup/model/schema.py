@@ -58,15 +58,30 @@ class RobotFrame(Placement):
     link: str = Field(min_length=1)
 
 
+class JointLimits(_Model):
+    """Limits of one joint that override the URDF's (position in rad or m, velocity per second)."""
+
+    lower: float | None = None
+    upper: float | None = None
+    velocity: float | None = Field(default=None, gt=0)
+
+    @model_validator(mode='after')
+    def _ordered(self) -> 'JointLimits':
+        if self.lower is not None and self.upper is not None and self.lower >= self.upper:
+            raise ValueError(f'lower ({self.lower}) must be below upper ({self.upper})')
+        return self
+
+
 class Robot(Placement):
     """A robot: kinematic model from a URDF (path relative to this file, or a file name under
     config/robots), its base (``fixed``, or ``planar``/``free_flyer`` for a mobile base) placed at
-    ``xyz``/``rpy`` in the world, and its object frames."""
+    ``xyz``/``rpy`` in the world, its object frames, and joint limits overriding the URDF's."""
 
     name: str = Field(pattern=NAME)
     urdf: str = Field(min_length=1)
     base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
     frames: list[RobotFrame] = Field(default_factory=list)
+    limits: dict[str, JointLimits] = Field(default_factory=dict)
 
 
 class ObjectFrame(Placement):

@@ -171,6 +171,13 @@ def _solver(app: Application) -> EntityModel:
     models = [load_robot(r.name, r.urdf, r.base) for r in app.program.robots]
     joints = [j for m in models for j in m.joint_names]
     limits = {key: [float(v) for m in models for v in getattr(m, key)] for key in ('lower', 'upper', 'velocity_limit')}
+    for robot in app.program.robots:  # the model's limits override the URDF's
+        for joint, override in robot.limits.items():
+            i = joints.index(joint)
+            for key, value in (('lower', override.lower), ('upper', override.upper),
+                               ('velocity_limit', override.velocity)):
+                if value is not None:
+                    limits[key][i] = float(value)
     return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
         'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
         'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
