@@ -356,3 +356,17 @@ def test_joint_limits_in_the_model_override_the_urdfs(tmp_path):
     i = solver['joint_names'].index('panda_joint1')
     assert (solver['lower'][i], solver['velocity_limit'][i]) == (-0.5, 0.3)
     assert solver['upper'][i] == pytest.approx(2.8973)  # from the URDF
+
+
+def test_a_moving_object_follows_its_trajectory_in_the_scene(tmp_path):
+    from itasc_core.itasc.objects import Object, periodic_translation
+    model = copy.deepcopy(BASE)
+    target = model['application']['program']['objects'][0]
+    target['motion'] = {'amplitude': [0.0, 0.1, 0.0], 'period': 4.0}
+    scene = next(e for e in load_composition(str(_write(tmp_path, 'app.yaml', model))).entity('itasc').entities
+                 if e.name == 'Scene')
+    assert "motion: {amplitude: [0.0, 0.1, 0.0], period: 4.0}" in scene.parameters['objects'][0]
+    moving = Object('target', xyz=target['xyz'], trajectory=periodic_translation(
+        xyz=target['xyz'], rpy=(0, 0, 0), amplitude=(0.0, 0.1, 0.0), period=4.0))
+    moving.update(1.0)  # a quarter period: the full amplitude
+    assert moving.frame_pose().translation[1] == pytest.approx(target['xyz'][1] + 0.1)

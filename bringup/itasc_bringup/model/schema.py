@@ -88,11 +88,20 @@ class ObjectFrame(Placement):
     name: str = Field(pattern=NAME)
 
 
+class ObjectMotion(_Model):
+    """A moving object's trajectory: oscillating about its placement, per axis."""
+
+    amplitude: tuple[float, float, float]
+    period: float = Field(gt=0)
+
+
 class Object(Placement):
-    """An object without controllable DOF, at ``xyz``/``rpy`` (or where its Sensor says)."""
+    """An object without controllable DOF, at ``xyz``/``rpy``, moving along ``motion``, or where
+    its Sensor says."""
 
     name: str = Field(pattern=NAME)
     frames: list[ObjectFrame] = Field(default_factory=list)
+    motion: ObjectMotion | None = None
 
 
 # -- Task ----------------------------------------------------------------------------------------

@@ -160,7 +160,8 @@ def _scene(app: Application) -> EntityModel:
                      'frames': {f.name: {'link': f.link, **_placement(f)} for f in r.frames}})
               for r in program.robots]
     objects = [_flow({'name': o.name, **_placement(o), 'frames': {f.name: _placement(f) for f in o.frames},
-                      'sensed': o.name in sensed}) for o in program.objects]
+                      'sensed': o.name in sensed,
+                      **({'motion': o.motion.model_dump()} if o.motion else {})}) for o in program.objects]
     relations = [_flow({'name': t.name, 'o1': t.o1, 'o2': t.o2}) for t in program.tasks if t.type != 'joint']
     return EntityModel(name='Scene', kind=KINDS['scene'],
                        parameters={'robots': robots, 'objects': objects or [''], 'relations': relations or ['']})

@@ -34,7 +34,7 @@ from std_msgs.msg import Float64MultiArray
 
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
-from ..objects import Object
+from ..objects import Object, periodic_translation
 from ..robot import Robot
 from ..scene import Scene
 from .messages import stamp, table_msg
@@ -91,7 +91,10 @@ class SceneEntity(FunctionalEntity):
             scene.add_robot(robot)
         self.sensed: list[str] = []
         for o in entries(params['objects']):
-            obj = Object(o['name'], xyz=o.get('xyz', (0, 0, 0)), rpy=o.get('rpy', (0, 0, 0)))
+            xyz, rpy, motion = o.get('xyz', (0, 0, 0)), o.get('rpy', (0, 0, 0)), o.get('motion')
+            trajectory = None if motion is None else periodic_translation(
+                xyz=xyz, rpy=rpy, amplitude=motion['amplitude'], period=motion['period'])
+            obj = Object(o['name'], xyz=xyz, rpy=rpy, trajectory=trajectory)
             for frame, spec in (o.get('frames') or {}).items():
                 obj.add_frame(frame, xyz=spec.get('xyz', (0, 0, 0)), rpy=spec.get('rpy', (0, 0, 0)))
             scene.add_object(obj)
