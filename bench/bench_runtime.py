@@ -4,8 +4,10 @@ A 3-level hierarchy (root { program { 3 task composites x 3 FEs }, plant }: 10 F
 Entities, 5 composites) deployed in one process (``--deploy single``), ticked by the Timer at
 1 kHz. Prints the bring-up time (rclpy.init to every Coordinator in Running), the achieved rate
 and the tick-to-completion latency (median, p90, p99, max) over the measurement window.
+With ``--app NAME`` the same figures for a shipped application (e.g. approach_object: the whole
+iTaSC program and its Driver every tick).
 
-    python bench/bench_runtime.py [--rate 1000] [--seconds 10] [--repeat 3]
+    python bench/bench_runtime.py [--rate 1000] [--seconds 10] [--repeat 3] [--app NAME]
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-def run_once(rate: float, seconds: float) -> dict:
+def run_once(rate: float, seconds: float, app: str | None = None) -> dict:
     from itasc_core.communication.dds import configure_dds
     configure_dds()
     start = time.monotonic()
@@ -59,10 +61,14 @@ def run_once(rate: float, seconds: float) -> dict:
     from itasc_core.communication.events import EventRaiser
     from itasc_core.composition.composer import bring_up
     from itasc_core.composition.deployment import Runtime, make_executor
-    from itasc_core.composition.model import CompositeModel
+    from itasc_core.composition.model import CompositeModel, walk
     from itasc_core.entity import CompositeContext
 
-    spec = CompositeModel.model_validate(model(rate))
+    if app is None:
+        spec = CompositeModel.model_validate(model(rate))
+    else:
+        from itasc_bringup.apps import load_composition
+        spec = load_composition(app).model_copy(update={'rate': rate})
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
     runtime = Runtime(executor=executor)
@@ -73,14 +79,16 @@ def run_once(rate: float, seconds: float) -> dict:
     raiser = EventRaiser(node, topic=root.events_topic)
     while raiser.publisher.get_subscription_count() < 3:
         executor.spin_once(timeout_sec=0.001)
-    raiser.raise_event('e_bench_configure')
+    raiser.raise_event(f'e_{spec.name}_configure')
 
     def coordinators(c=composer):
         yield c.coordinator
         for child in c.children.values():
             yield from coordinators(child)
 
-    while not all(c.state.startswith('Active.Run.Running') for c in coordinators()) or len(list(coordinators())) < 5:
+    composites = sum(1 for _ in walk(spec))
+    while not all(c.state.startswith('Active.Run.Running') for c in coordinators()) \
+            or len(list(coordinators())) < composites:
         executor.spin_once(timeout_sec=0.001)
     bring_up_time = time.monotonic() - start
     composer.timer.durations.clear()
@@ -98,7 +106,7 @@ def run_once(rate: float, seconds: float) -> dict:
         'max_us': max(durations),
         'ticks': len(durations),
     }
-    raiser.raise_event('e_bench_stop')
+    raiser.raise_event(f'e_{spec.name}_stop')
     while not composer.coordinator.state.endswith('NotifyStopped'):
         executor.spin_once(timeout_sec=0.01)
         runtime.reap()
@@ -111,15 +119,17 @@ def main() -> None:
     parser.add_argument('--rate', type=float, default=1000.0)
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--repeat', type=int, default=3)
+    parser.add_argument('--app', default=None, help='a shipped application instead of the synthetic hierarchy')
     args = parser.parse_args()
     cpu = next((line.split(':', 1)[1].strip() for line in open('/proc/cpuinfo') if line.startswith('model name')),
                platform.processor())
     print(f'machine: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}')
-    print(f'hierarchy: 5 composites, 10 functional entities, --deploy single, Timer at {args.rate:.0f} Hz')
+    what = args.app or 'hierarchy: 5 composites, 10 functional entities'
+    print(f'{what}, --deploy single, Timer at {args.rate:.0f} Hz')
     print(f'{"run":>3} {"bring-up s":>10} {"rate Hz":>8} {"median us":>9} {"p90 us":>7} {"p99 us":>7} {"max us":>7} {"ticks":>6}')
     results = []
     for i in range(args.repeat):
-        r = run_once(args.rate, args.seconds)
+        r = run_once(args.rate, args.seconds, args.app)
         results.append(r)
         print(f'{i:>3} {r["bring_up_s"]:>10.3f} {r["rate_hz"]:>8.1f} {r["median_us"]:>9.0f} {r["p90_us"]:>7.0f} '
               f'{r["p99_us"]:>7.0f} {r["max_us"]:>7.0f} {r["ticks"]:>6}')
