@@ -209,3 +209,19 @@ def test_inactive_entities_compute_nothing_until_activated():
         assert any('/T2/' in name for _, name in probes.CALLS)
     finally:
         h.close()
+
+
+def test_an_entity_switched_on_again_is_told_so_once():
+    h = Hierarchy(model(inactive=['T2']))
+    try:
+        h.start()
+        assert h.spin_until(lambda: all_running(h))
+        first = h.composer.children['program'].children['T2'].entities['first']
+        assert first.activations == 0
+        h.raise_event('e_T2_activate', '/root/program')
+        assert h.spin_until(lambda: first.activations == 1, timeout=2)
+        h.raise_event('e_T2_activate', '/root/program')  # already on: nothing to restart
+        h.spin_for(0.1)
+        assert first.activations == 1
+    finally:
+        h.close()

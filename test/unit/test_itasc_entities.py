@@ -211,13 +211,16 @@ def test_vkc_entity_computes_what_the_math_chain_computes_on_the_scene(world, ch
     assert np.allclose(features.matrix(), math_chain.jacobian, atol=1e-12)
 
 
-def test_setpoint_restarts_from_the_current_output_after_a_pause(world):
+def test_setpoint_restarts_from_the_current_output_when_its_task_is_activated_again(world):
     entities = _program(world, setpoint={'kind': 'minimum_jerk', 'target': [0.0] * 6, 'target_is_pose': True,
                                          'duration': 2.0})
     spg = entities[5]
     run(entities, 50)
     assert spg.outputs['progress'].last.data == pytest.approx(49 * DT / 2.0)
-    run(entities, 2, start=10.0)  # the Task was deactivated for 9.5 s
+    run(entities, 2, start=10.0)  # skipped ticks alone restart nothing: the motion's time ran on
+    assert spg.outputs['progress'].last.data == pytest.approx(1.0)
+    spg.activate()  # the Scheduler calls this on e_<Task>_activate
+    run(entities, 2, start=20.0)
     assert spg.outputs['progress'].last.data == pytest.approx(DT / 2.0)
 
 

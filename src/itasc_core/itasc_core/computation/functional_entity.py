@@ -101,6 +101,11 @@ class FunctionalEntity(Entity):
     def update(self, t: float) -> None:
         """One computation step at time ``t`` (seconds since the Timer started)."""
 
+    def activate(self) -> None:
+        """Switched on again by the Coordinator (``e_<entity or its composite>_activate``) after
+        being off: continue from the present, not from where it stopped (e.g. a setpoint
+        generator restarts from the current output)."""
+
     def disengage(self) -> None:
         """Stop acting on the world (Stopped.Disengage), e.g. command zero velocity."""
 

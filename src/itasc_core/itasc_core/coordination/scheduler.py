@@ -31,6 +31,8 @@ class _Item:
     run: Callable[[float], None]
     entity: FunctionalEntity | None = None
     enabled: bool = True
+    #: A child composite in this process: its Scheduler, reached through its Composer.
+    child: object | None = None
 
 
 class Scheduler(Entity):
@@ -62,8 +64,9 @@ class Scheduler(Entity):
     def add_entity(self, entity: FunctionalEntity, *, index: int | None = None, enabled: bool = True) -> None:
         self._insert(_Item(entity.entity_name, entity.update, entity, enabled), index)
 
-    def add_child(self, name: str, child: 'Scheduler', *, enabled: bool = True) -> None:
-        self._insert(_Item(name, child.tick, enabled=enabled), None)
+    def add_child(self, name: str, child, *, enabled: bool = True) -> None:
+        """A child composite in this process; ``child`` is its Composer (which has its Scheduler)."""
+        self._insert(_Item(name, child.tick, enabled=enabled, child=child), None)
 
     def add_remote_child(self, name: str, namespace: str, *, enabled: bool = True) -> None:
         publisher = self.create_publisher(Float64, f'{namespace}/trigger', DATA_QOS)
@@ -97,11 +100,28 @@ class Scheduler(Entity):
         if handler is not None:
             handler()
             return
+        if msg.name == 'e_activate' and self._trigger_sub is not None:
+            # This composite lives in its own process: its parent's e_<composite>_activate
+            # reaches it through its Coordinator.
+            self.activate_all()
+            return
         for item in self._items:
-            if msg.name == f'e_{item.name}_activate':
+            if msg.name == f'e_{item.name}_activate' and not item.enabled:
                 item.enabled = True
+                self._reactivate(item)
             elif msg.name == f'e_{item.name}_deactivate':
                 item.enabled = False
+
+    def _reactivate(self, item: _Item) -> None:
+        if item.entity is not None:
+            item.entity.activate()
+        elif item.child is not None and item.child.scheduler is not None:
+            item.child.scheduler.activate_all()
+
+    def activate_all(self) -> None:
+        """Everything this Scheduler runs was switched on again (its composite was)."""
+        for item in self._items:
+            self._reactivate(item)
 
     def _entities(self):
         return [i.entity for i in self._items if i.entity is not None] + self._monitors

@@ -24,29 +24,26 @@ def table_port(name: str, direction: str, kind: str, task: str) -> PortSpec:
 
 
 class Ticks:
-    """Tick bookkeeping: the time step, and whether the entity resumes after a pause (its Task was
-    deactivated by the Coordinator, so the Scheduler skipped it) or runs for the first time.
-
-    A pause is a gap of more than ``GAP`` nominal periods and at least ``MIN_GAP`` seconds, so
-    that timer jitter is never taken for one.
-    """
-
-    GAP = 5.0
-    MIN_GAP = 0.2
+    """Tick bookkeeping: the time step, and whether the entity runs for the first time or resumes
+    after its Task was switched off and on again (:meth:`restart`, from the entity's ``activate``)."""
 
     def __init__(self, period: float) -> None:
         self.period = period
         self.last: float | None = None
+        self._resume = False
+
+    def restart(self) -> None:
+        self._resume = True
 
     def step(self, t: float) -> tuple[float, bool]:
-        """``(dt, resumed)`` for the tick at time ``t``; dt is the nominal period after a pause."""
+        """``(dt, resumed)`` for the tick at time ``t``; dt is the nominal period after a restart."""
         last, self.last = self.last, t
         if last is None:
             return 0.0, True
-        dt = t - last
-        if dt > max(self.GAP * self.period, self.MIN_GAP):
+        if self._resume:
+            self._resume = False
             return self.period, True
-        return dt, False
+        return t - last, False
 
 
 def names(values: list[Any]) -> list[str]:

@@ -82,6 +82,9 @@ class ConstraintControllerEntity(FunctionalEntity):
         self._ticks = getattr(self, '_ticks', None) or Ticks(params['tick_period'])
         self._ticks.period = params['tick_period']
 
+    def activate(self) -> None:
+        self._ticks.restart()
+
     def update(self, t: float) -> None:
         msg = self.inputs['output'].latest
         if msg is None:

@@ -125,6 +125,9 @@ class SetpointGeneratorEntity(FunctionalEntity):
         if isinstance(self.generator, TopicSetpoint):
             self.generator.push(np.asarray(msg.data, dtype=float))
 
+    def activate(self) -> None:
+        self._ticks.restart()
+
     def update(self, t: float) -> None:
         msg = self.inputs['features'].latest
         if msg is None:
