@@ -96,8 +96,8 @@ def main(argv: list[str] | None = None) -> int:
         composer = bring_up(model=model, context=root, runtime=runtime)
         coordinator = composer.coordinator
         composites = {m.name: path for path, m in walk(model)}
-        StatusDisplay(node, composites=composites,
-                      rate=lambda: composer.timer.achieved_rate() if composer.timer else 0.0)
+        status = StatusDisplay(node, composites=composites,
+                               rate=lambda: composer.timer.achieved_rate() if composer.timer else 0.0)
         failures: list[str] = []
         EventListener(node, topics=[root.events_topic], immediate=True,
                       accept=lambda name: name.endswith('_failed') or name.endswith('_refused'),
@@ -121,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
                 raiser.raise_event(f'e_{root.name}_stop')
                 stop_sent_at = time.monotonic()
             if state.endswith('NotifyStopped'):
-                executor.spin_once(timeout_sec=0.05)  # let the status show the final state
+                shown = time.monotonic() + 1.0  # let the status show the final state
+                while not status.states[root.name].endswith('NotifyStopped') and time.monotonic() < shown:
+                    executor.spin_once(timeout_sec=0.01)
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
