@@ -118,7 +118,6 @@ class CompositionStepModel(_Strict):
     """A composition step of the Composer with an ID (Coordinator–Composer pattern, §3.1)."""
 
     add: list['EntityOrComposite'] = Field(default_factory=list)
-    remove: list[str] = Field(default_factory=list)
     connections: list[ConnectionModel] = Field(default_factory=list)
 
 
