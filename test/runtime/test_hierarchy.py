@@ -149,9 +149,11 @@ def test_emergency_raised_by_a_functional_entity_at_the_deepest_level():
         h.start()
         assert h.spin_until(lambda: h.coordinators.get('T1') is not None and h.state('T1') == 'Safety')
         assert h.spin_until(lambda: h.state('T2').startswith('Active.Run.Running'), timeout=2)  # T2 unaffected
-        ticks = h.composer.children['program'].children['T1'].scheduler.ticks
+        scheduler = h.composer.children['program'].children['T1'].scheduler
+        assert h.spin_until(lambda: not scheduler.active, timeout=1)  # e_T1_safety reached it
+        ticks = scheduler.ticks
         h.spin_for(0.2)
-        assert h.composer.children['program'].children['T1'].scheduler.ticks == ticks  # nothing computes
+        assert scheduler.ticks == ticks  # nothing computes in Safety
     finally:
         h.close()
 
