@@ -349,3 +349,8 @@ def test_ros2_control_adapter_integrates_positions_for_a_position_controller(wor
         adapter.update(k * 0.1)
     assert world.spin_until(lambda: len(received) == 3)
     assert received[-1].data[0] == pytest.approx(PANDA_READY[0] + 0.2)
+
+
+def test_an_entity_refuses_invalid_parameters_at_construction(world):
+    with pytest.raises(ValueError, match='gains must be >= 0'):
+        world.entity(ConstraintControllerEntity, 'CC_bad', task='T', kp=-1.0)

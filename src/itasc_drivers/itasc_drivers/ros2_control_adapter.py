@@ -61,9 +61,6 @@ class Ros2ControlAdapter(FunctionalEntity):
         return None
 
     def configure(self, params: dict[str, Any]) -> None:
-        reason = self.validate_parameters(params)
-        if reason:
-            raise ValueError(f'{self.entity_name}: {reason}')
         self.joints = [j for j in params['joints'] if j]
         self.interface = params['interface']
         self.horizon = params['horizon']

@@ -58,6 +58,9 @@ class FunctionalEntity(Entity):
                 self.inputs[spec.name] = InputPort(self, spec.with_id(topic))
             else:
                 self.outputs[spec.name] = OutputPort(self, spec.with_id(topic))
+        reason = self.validate_parameters(values)
+        if reason:  # later changes are checked by _check_parameters
+            raise ValueError(f'{type(self).__name__} {name}: {reason}')
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
         self.configure(values)

@@ -66,9 +66,6 @@ class ConstraintControllerEntity(FunctionalEntity):
         return None
 
     def configure(self, params: dict[str, Any]) -> None:
-        reason = self.validate_parameters(params)
-        if reason:
-            raise ValueError(f'{self.entity_name}: {reason}')
         cls = PIDController if params['kind'] == 'pid' else PController
         if type(getattr(self, 'controller', None)) is not cls:
             self.controller = cls()

@@ -47,9 +47,6 @@ class ConstraintRowsEntity(FunctionalEntity):
         return None
 
     def configure(self, params: dict[str, Any]) -> None:
-        reason = self.validate_parameters(params)
-        if reason:
-            raise ValueError(f'{self.entity_name}: {reason}')
         self.task, self.priority = params['task'], params['priority']
         self.weights = np.asarray(params['weights'], dtype=float)
         self.inequality = params['inequality']

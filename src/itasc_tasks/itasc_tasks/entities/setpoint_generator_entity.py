@@ -84,9 +84,6 @@ class SetpointGeneratorEntity(FunctionalEntity):
         return None
 
     def configure(self, params: dict[str, Any]) -> None:
-        reason = self.validate_parameters(params)
-        if reason:
-            raise ValueError(f'{self.entity_name}: {reason}')
         self.outputs_selected = names(params['outputs'])
         self.kind = params['kind']
         target: Any = np.array(params['target'], dtype=float)

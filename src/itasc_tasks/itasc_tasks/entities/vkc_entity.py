@@ -107,8 +107,6 @@ class VKCEntity(FunctionalEntity):
 
     def configure(self, params: dict[str, Any]) -> None:
         kind = params['type']
-        if kind not in TYPES:
-            raise ValueError(self.validate_parameters(params))
         if kind == 'cartesian':
             self.vkc = CartesianVKC(params['o1'], params['o2'], coordinates=params['coordinates'])
         elif kind == 'distance':

@@ -87,9 +87,6 @@ class SolverEntity(FunctionalEntity):
         return None
 
     def configure(self, params: dict[str, Any]) -> None:
-        reason = self.validate_parameters(params)
-        if reason:
-            raise ValueError(f'{self.entity_name}: {reason}')
         self.joint_names = [j for j in params['joint_names'] if j]
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self.lower = np.array(params['lower'], dtype=float)
