@@ -66,7 +66,8 @@ fi
 # 4. ROS defaults for this project (each only if not set by the caller).
 #    Fast DDS is the only RMW the wheels ship.
 export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
-#    Discovery stays on this machine: no traffic to the LAN from demos or tests.
+#    Discovery stays on this machine: no traffic to the LAN from demos or tests (our executables
+#    implement LOCALHOST with a UDP-only Fast DDS profile, see itasc_core/communication/dds.py).
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 #    Node logs under the git-ignored log/ instead of ~/.ros/log.
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$ITASC_ROOT/log/ros}"

@@ -3,14 +3,23 @@
 Each pytest process (the main one, or each pytest-xdist worker) gets its own ROS_DOMAIN_ID
 so that concurrently running tests, and concurrent test runs, do not discover each other's
 nodes and topics. Subprocesses started by tests inherit it.
+
+Every test is also checked for processes it left running (see :func:`no_process_left_running`).
 """
 import os
 import pathlib
 import re
+import signal
+import sys
+import time
 
 import pytest
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+# Test helpers (``processes``) and the Functional Entity kinds of the runtime tests (``test_support.probes:...``).
+sys.path.insert(0, str(REPO_ROOT / 'test' / 'support'))
+from processes import started_here  # noqa: E402
 
 
 def _test_domain_id() -> int:
@@ -28,19 +37,38 @@ def _test_domain_id() -> int:
 
 
 os.environ['ROS_DOMAIN_ID'] = str(_test_domain_id())
-# Our Fast DDS profile (intra-process delivery off, see itasc_core/communication/fastdds.xml).
-os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE',
-                      str(REPO_ROOT / 'src/itasc_core/itasc_core/communication/fastdds.xml'))
-# Keep discovery on this machine even when the suite runs outside scripts/env.sh.
+# Keep discovery on this machine even when the suite runs outside scripts/env.sh, with our Fast DDS
+# profile, as every executable of ours does (itasc_core.communication.dds).
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+from itasc_core.communication.dds import configure_dds  # noqa: E402
+
+configure_dds()
+
+
+# Marks every process this pytest process starts, directly or not (see processes.started_here).
+os.environ['ITASC_TEST_SESSION'] = str(os.getpid())
+
+
+@pytest.fixture(autouse=True)
+def no_process_left_running():
+    """A test must not leave processes behind: they would disturb later tests and hold the run's
+    output pipe open after pytest ends. Leftovers get a few seconds to end, are then killed, and
+    the test errors, naming them."""
+    yield
+    if not os.path.isdir('/proc'):
+        return
+    deadline = time.monotonic() + 10.0
+    while (left := started_here()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    for pid in left:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    assert not left, f'processes left running by this test (killed now): {left}'
 
 
 @pytest.fixture(scope='session')
 def repo_root() -> pathlib.Path:
     """Absolute path of the repository root."""
     return REPO_ROOT
-
-# Functional Entity kinds used by the runtime tests (``test_support.probes:...``).
-import sys  # noqa: E402
-
-sys.path.insert(0, str(REPO_ROOT / 'test' / 'support'))

@@ -9,9 +9,11 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from processes import Spawned
 from rosbags.highlevel import AnyReader
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+FAKE_ROS2_CONTROL = [sys.executable, '-m', 'itasc_drivers.fake_ros2_control']
 D_MIN = 0.15  # config/tasks/avoid_obstacle.yaml
 
 
@@ -76,15 +78,11 @@ def test_approach_object_end_to_end(tmp_path):
 
 
 def test_approach_object_through_a_separate_ros2_control_like_driver(tmp_path):
-    driver = subprocess.Popen([sys.executable, '-m', 'itasc_drivers.fake_ros2_control'])
-    try:
+    with Spawned(FAKE_ROS2_CONTROL) as driver:
         mcap = tmp_path / 'ros_driver.mcap'
         run_app('approach_object_ros_driver', mcap, duration=12)
         messages = read(mcap)
-        assert driver.poll() is None, 'the external driver died'
-    finally:
-        driver.terminate()
-        driver.wait(timeout=10)
+        assert driver.process.poll() is None, 'the external driver died\n' + driver.output()
     # The adapter mapped the external joint_states (reversed order, an extra finger joint) by name.
     states = of_type(messages, 'sensor_msgs/msg/JointState')['/approach_object_ros_driver/Driver_panda/joint_state']
     assert list(states[-1].name) == [f'panda_joint{i}' for i in range(1, 8)]
@@ -104,17 +102,12 @@ def test_mobile_manipulator_reaches_beyond_the_arm_with_the_base_moving(tmp_path
 
 
 def test_a_silent_driver_puts_the_application_in_safety(tmp_path):
-    driver = subprocess.Popen([sys.executable, '-m', 'itasc_drivers.fake_ros2_control'])
     mcap = tmp_path / 'silent.mcap'
-    app = subprocess.Popen([*BOOTSTRAP, 'approach_object_ros_driver', '--duration', '6', '--record', str(mcap)],
-                           stdout=subprocess.PIPE, text=True)
-    for line in app.stdout:
-        if line.startswith('[state] approach_object_ros_driver: Active.Run.Running'):
-            break
-    driver.kill()  # the robot's driver falls silent
-    driver.wait(timeout=10)
-    app.communicate(timeout=120)
-    assert app.returncode == 0
+    with (Spawned(FAKE_ROS2_CONTROL) as driver,
+          Spawned([*BOOTSTRAP, 'approach_object_ros_driver', '--duration', '6', '--record', str(mcap)]) as app):
+        app.wait_for_line('[state] approach_object_ros_driver: Active.Run.Running', timeout=120)
+        driver.kill()  # the robot's driver falls silent
+        assert app.finish(timeout=120) == 0, app.output()
     messages = read(mcap)
     root = [m.state for m in of_type(messages, 'itasc_msgs/msg/CoordinatorState')['/approach_object_ros_driver/state']]
     assert 'Safety' in root and root[-1].startswith('Active.Stop.Stopped')

@@ -4,17 +4,18 @@ our own itasc_msgs types, and that stay readable when the recording process is s
 import os
 import pathlib
 import signal
-import subprocess
 import sys
 import textwrap
 import time
 
 import pytest
+from processes import Spawned
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 101))  # conftest.py normally sets it
 
 import rclpy  # noqa: E402
 from rclpy.context import Context  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
@@ -176,33 +177,33 @@ def test_signalled_recorder_leaves_a_readable_file(tmp_path, variant, signum, co
     from sensor_msgs.msg import JointState
 
     path = tmp_path / 'signalled.mcap'
-    proc = subprocess.Popen([sys.executable, '-c', _PUBLISHER, str(path), variant],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     node = rclpy.create_node('pub_here', context=context)
     pub = node.create_publisher(JointState, '/app/here/joint_states', 10)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     try:
-        # wait until the other process records what we publish
-        assert _spin_until(executor, lambda: pub.get_subscription_count() >= 1, 20.0), \
-            'recorder process never subscribed'
-        for _ in range(20):
-            pub.publish(JointState(name=['k'], position=[2.0]))
-            time.sleep(0.02)
-        time.sleep(0.3)
-        proc.send_signal(signum)
-        out, _ = proc.communicate(timeout=15)
+        with Spawned([sys.executable, '-c', _PUBLISHER, str(path), variant]) as proc:
+            # wait until the other process records what we publish
+            assert _spin_until(executor, lambda: pub.get_subscription_count() >= 1, 20.0), \
+                'recorder process never subscribed\n' + proc.output()
+            for _ in range(20):
+                pub.publish(JointState(name=['k'], position=[2.0]))
+                time.sleep(0.02)
+            # delivered (acknowledged by the recorder's reader), then a little time to write it
+            assert pub.wait_for_all_acked(Duration(seconds=10)), 'the recorder did not acknowledge'
+            time.sleep(0.3)
+            proc.send_signal(signum)
+            returncode = proc.finish(timeout=15)
+            out = proc.output()
     finally:
-        if proc.poll() is None:
-            proc.kill()
         executor.shutdown()
         node.destroy_node()
     # module-main exits cleanly; the others die of the uncaught ExternalShutdownException or
     # KeyboardInterrupt (which CPython turns into death by SIGINT)
     allowed = (0,) if variant == 'module-main' else (0, 1, -signum, -signal.SIGINT)
-    assert proc.returncode in allowed, out.decode(errors='replace')
+    assert returncode in allowed, out
     connections, messages = _read_all(path)
     topics = [t for t, _, _ in messages]
-    assert topics.count('/app/here/joint_states') == 20, out.decode(errors='replace')
+    assert topics.count('/app/here/joint_states') == 20, out
     if variant != 'module-main':
         assert topics.count('/app/joint_states') > 10

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import re
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
+from processes import Spawned, started_here
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
 
@@ -45,16 +49,16 @@ def test_same_behaviour_with_one_process_per_composite(single):
     assert state_sequences(per_composite.stdout) == state_sequences(single.stdout)
 
 
-def test_sigint_leads_to_an_orderly_stop_and_exit_0():
-    process = subprocess.Popen([*BOOTSTRAP, 'pattern_demo'], stdout=subprocess.PIPE, text=True)
-    for line in process.stdout:
-        if line.startswith('[state] app: Active.Run.Running'):
-            break
-    process.send_signal(subprocess.signal.SIGINT)
-    out, _ = process.communicate(timeout=60)
-    assert process.returncode == 0
-    assert 'app: stopped (signal SIGINT)' in out
-    assert '[state] program: Active.Stop.Stopped.NotifyStopped' in out
+@pytest.mark.parametrize('deploy', ['single', 'per-composite'])
+def test_ctrl_c_leads_to_an_orderly_stop_and_exit_0(deploy):
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--deploy', deploy]) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        os.killpg(app.process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to every process of the app
+        assert app.finish(timeout=60) == 0, app.output()
+    assert 'app: stopped (signal SIGINT)' in app.out
+    sequences = state_sequences(app.out)
+    for composite in ('app', 'program', 'track', 'hold'):
+        assert sequences.get(composite, [''])[-1] == 'Active.Stop.Stopped.NotifyStopped', app.output()
 
 
 def test_unknown_application_exits_2_without_traceback():
@@ -64,20 +68,32 @@ def test_unknown_application_exits_2_without_traceback():
     assert 'Traceback' not in result.stderr
 
 
+def _host_processes(namespace: str = '') -> list[int]:
+    """pids of this test's composite processes (``--deploy per-composite``), all or one's."""
+    hosts = started_here(command='itasc_core.composition.host')
+    return [pid for pid, line in hosts.items() if not namespace or f'--namespace {namespace} ' in line]
+
+
 def test_a_dead_composite_process_puts_its_parent_in_safety_and_the_stop_stays_orderly():
-    process = subprocess.Popen([*BOOTSTRAP, 'pattern_demo', '--deploy', 'per-composite', '--duration', '4'],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    lines = []
-    for line in process.stdout:
-        lines.append(line)
-        if line.startswith('[state] app: Active.Run.Running'):
-            break
-    killed = subprocess.run(['pkill', '-9', '-f', 'itasc_core.composition.host .*--namespace /app/program/hold'])
-    assert killed.returncode == 0
-    out, err = process.communicate(timeout=120)
-    lines += out.splitlines(keepends=True)
-    assert process.returncode == 0, err[-2000:]
-    sequences = state_sequences(''.join(lines))
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--deploy', 'per-composite', '--duration', '4']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        hold = _host_processes('/app/program/hold')
+        assert len(hold) == 1, hold
+        os.kill(hold[0], signal.SIGKILL)
+        assert app.finish(timeout=120) == 0, app.output()
+    sequences = state_sequences(app.out)
     assert 'Safety' in sequences['program']
     assert sequences['program'][-1].startswith('Active.Stop.Stopped')
-    assert 'process of composite hold died' in err
+    assert 'process of composite hold died' in app.err
+
+
+def test_composite_processes_end_when_the_bootstrap_is_killed():
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--deploy', 'per-composite']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        assert len(_host_processes()) == 3  # program, and its tasks track and hold
+        app.process.kill()  # SIGKILL: no orderly stop, the composite processes are orphaned
+        app.process.wait()
+        deadline = time.monotonic() + 10
+        while _host_processes() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert _host_processes() == []

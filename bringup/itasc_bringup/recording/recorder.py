@@ -264,10 +264,13 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
+    from itasc_core.communication.dds import configure_dds
+
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('path')
     parser.add_argument('--prefix', default='/app')
     args = parser.parse_args(argv)
+    configure_dds()
     rclpy.init()
     recorder = None
     try:

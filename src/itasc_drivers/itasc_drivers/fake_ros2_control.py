@@ -20,6 +20,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from itasc_core.communication.dds import configure_dds
+
 __all__ = ['FakeRos2Control', 'main']
 
 PANDA = [f'panda_joint{i}' for i in range(1, 8)]
@@ -81,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     initial = [float(v) for v in args.initial.split(',')]
     if len(initial) != len(joints):
         parser.error(f'{len(initial)} initial positions for {len(joints)} joints')
+    configure_dds()
     rclpy.init()
     node = FakeRos2Control(joints=joints, initial=initial, extra_joint=args.extra_joint,
                            controller=args.controller, interface=args.interface, rate=args.rate,

@@ -21,6 +21,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import JointState
 
+from itasc_core.communication.dds import configure_dds
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.entity import CompositeContext
@@ -99,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--command-topic', default='/sim/command')
     args = parser.parse_args(argv)
     initial = dict(item.split('=') for item in args.initial.split(',') if item)
+    configure_dds()
     rclpy.init()
     node = SimulatedRobot(args.robot, composite=CompositeContext(name='sim', namespace=args.namespace),
                           parameters={'robot': args.robot, 'urdf': args.urdf, 'base': args.base,

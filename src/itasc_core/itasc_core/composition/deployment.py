@@ -68,26 +68,33 @@ class Runtime:
             json.dump(model.model_dump(by_alias=True, exclude_defaults=True), out)
         self._spec_files.append(path)
         command = [sys.executable, '-m', 'itasc_core.composition.host', '--spec', path,
-                   '--namespace', namespace, '--parent-namespace', parent_namespace]
+                   '--namespace', namespace, '--parent-namespace', parent_namespace,
+                   '--parent-pid', str(os.getpid())]
         self._processes[namespace] = subprocess.Popen(command)
 
     def process(self, namespace: str) -> subprocess.Popen | None:
         return self._processes.get(namespace)
 
-    def join(self, namespace: str, *, timeout: float = 10.0) -> int | None:
-        """Wait for a composite process to end (it ends by itself after NotifyStopped)."""
+    def join(self, namespace: str, *, timeout: float = 10.0, orderly: bool = True) -> int | None:
+        """Wait for a composite process to end (it ends by itself after NotifyStopped); past
+        ``timeout``, or at once if not ``orderly``, terminate it, and kill it if that fails."""
         process = self._processes.pop(namespace, None)
         if process is None:
             return None
-        try:
-            return process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            process.terminate()
-            return process.wait(timeout=timeout)
+        for end in ((None, process.terminate, process.kill) if orderly else (process.terminate, process.kill)):
+            if end is not None:
+                end()
+            try:
+                return process.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                continue
+        return None
 
-    def shutdown(self) -> None:
+    def shutdown(self, *, orderly: bool = True) -> None:
+        """End the composite processes: they have stopped in order (``orderly``), or they cannot be
+        stopped in order any more (this process ends on a signal, or its parent is gone)."""
         for namespace in list(self._processes):
-            self.join(namespace, timeout=5.0)
+            self.join(namespace, timeout=5.0, orderly=orderly)
         for path in self._spec_files:
             try:
                 os.unlink(path)

@@ -3,13 +3,15 @@
 Started by the parent's Composer; does for its composite what the bootstrap does for the root:
 brings up its Coordinator, Composer and Configurator, then lets the life-cycle run. Its Scheduler
 is triggered over the composite's trigger topic. The process ends after its Coordinator notified
-the parent that it stopped (or on SIGTERM/SIGINT).
+the parent that it stopped, on SIGTERM, or when the parent process is gone: a composite
+whose parent died can never be stopped in order, and must not outlive it.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import time
 
@@ -31,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--spec', required=True)
     parser.add_argument('--namespace', required=True)
     parser.add_argument('--parent-namespace', required=True)
+    parser.add_argument('--parent-pid', type=int, required=True)
     args = parser.parse_args(argv)
     with open(args.spec) as spec:
         model = CompositeModel.model_validate(json.load(spec))
@@ -39,22 +42,27 @@ def main(argv: list[str] | None = None) -> int:
     configure_dds()
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    signal.signal(signal.SIGINT, lambda *_: stop.append(True))
+    # Ctrl-C in a terminal reaches every process of the application; the bootstrap answers it with
+    # an orderly Stop of the whole hierarchy, which this process must stay alive to take part in.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
     runtime = Runtime(executor=executor, mode='per-composite')
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
+    stopped_at = None
     try:
-        stopped_at = None
         while not stop:
             executor.spin_once(timeout_sec=0.05)
             runtime.reap()
+            if os.getppid() != args.parent_pid:
+                composer.get_logger().error(f'parent process {args.parent_pid} is gone; {model.name} ends')
+                break
             if stopped_at is None and composer.coordinator.state.endswith('NotifyStopped'):
                 stopped_at = time.monotonic()
             if stopped_at is not None and time.monotonic() - stopped_at > LINGER:
                 break
     finally:
-        runtime.shutdown()
+        runtime.shutdown(orderly=stopped_at is not None)
         for node in (composer.coordinator, composer.configurator, composer):
             executor.remove_node(node)
             node.destroy_node()

@@ -1,0 +1,124 @@
+"""Processes started by tests: time-bounded reads, and nothing left running afterwards.
+
+A test that waits for a line a process never prints must fail with what the process did print,
+not hang; and a process a test started (with the composite processes it started in turn) must be
+gone when the test ends, whatever the test's outcome. A leftover holding the test run's output
+pipe would otherwise keep CI waiting long after pytest finished.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import threading
+import time
+from typing import Sequence
+
+__all__ = ['Spawned', 'started_here']
+
+
+def started_here(*, command: str = '') -> dict[int, str]:
+    """Running processes started, directly or not, by this test process: pid -> command line.
+
+    Recognised by the ``ITASC_TEST_SESSION=<pid of the test process>`` in their environment
+    (conftest.py sets it), which every descendant inherits, even one whose parent died. Only those
+    whose command line contains ``command``. Linux (``/proc``).
+    """
+    mark = f'ITASC_TEST_SESSION={os.getpid()}'.encode()
+    found = {}
+    for entry in os.scandir('/proc'):
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            with open(f'/proc/{entry.name}/environ', 'rb') as environ:
+                if mark not in environ.read().split(b'\0'):
+                    continue
+            with open(f'/proc/{entry.name}/cmdline', 'rb') as cmdline:
+                line = cmdline.read().replace(b'\0', b' ').decode(errors='replace').strip()
+        except OSError:  # gone meanwhile (zombies have an empty environ), or not ours to read
+            continue
+        if command in line:
+            found[int(entry.name)] = line
+    return found
+
+
+class Spawned:
+    """A process in its own process group, its stdout and stderr collected line by line.
+
+    Use as a context manager; leaving it kills the whole group if the process is still running.
+    """
+
+    def __init__(self, args: Sequence[str], **popen) -> None:
+        self.process = subprocess.Popen(list(args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                        start_new_session=True, **popen)
+        self.stdout: list[str] = []
+        self.stderr: list[str] = []
+        self._lines: queue.Queue[str | None] = queue.Queue()
+        self._readers = [threading.Thread(target=self._read, args=(self.process.stdout, self.stdout, True), daemon=True),
+                         threading.Thread(target=self._read, args=(self.process.stderr, self.stderr, False), daemon=True)]
+        for reader in self._readers:
+            reader.start()
+
+    def _read(self, stream, into: list[str], announce: bool) -> None:
+        for line in stream:
+            into.append(line)
+            if announce:
+                self._lines.put(line)
+        if announce:
+            self._lines.put(None)
+
+    def wait_for_line(self, prefix: str, *, timeout: float) -> str:
+        """The first stdout line from now on that starts with ``prefix``; fails after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while (left := deadline - time.monotonic()) > 0:
+            try:
+                line = self._lines.get(timeout=left)
+            except queue.Empty:
+                break
+            if line is None:
+                raise AssertionError(f'process ended (exit {self.process.wait()}) before printing {prefix!r}\n'
+                                     + self.output())
+            if line.startswith(prefix):
+                return line
+        raise AssertionError(f'no line {prefix!r} within {timeout} s\n' + self.output())
+
+    def send_signal(self, signum: int) -> None:
+        self.process.send_signal(signum)
+
+    def finish(self, *, timeout: float) -> int:
+        """Wait for the process to end by itself and for its output; returns its exit code."""
+        try:
+            code = self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f'process still running after {timeout} s\n' + self.output()) from None
+        for reader in self._readers:
+            reader.join(timeout=10)
+        return code
+
+    @property
+    def out(self) -> str:
+        return ''.join(self.stdout)
+
+    @property
+    def err(self) -> str:
+        return ''.join(self.stderr)
+
+    def output(self, *, tail: int = 4000) -> str:
+        return f'--- stdout (tail)\n{self.out[-tail:]}\n--- stderr (tail)\n{self.err[-tail:]}'
+
+    def kill(self) -> None:
+        """SIGKILL the process group (the process and every process it started)."""
+        try:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.process.wait()
+
+    def __enter__(self) -> Spawned:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.process.poll() is None:
+            self.kill()
