@@ -68,6 +68,30 @@ def no_process_left_running():
     assert not left, f'processes left running by this test (killed now): {left}'
 
 
+def _dds_participants() -> int:
+    """DDS participants alive in this process: Fast DDS runs one event thread ``dds.ev.<id>`` each."""
+    count = 0
+    for task in os.listdir('/proc/self/task'):
+        try:
+            with open(f'/proc/self/task/{task}/comm') as comm:
+                count += comm.read().startswith('dds.ev.')
+        except OSError:
+            continue
+    return count
+
+
+@pytest.fixture(autouse=True)
+def no_dds_participant_left():
+    """A test must destroy every node it created (ros_teardown.destroy_all): a context's DDS
+    participant lives as long as one of its nodes, and participants left over in this process
+    can deadlock Fast DDS when a later test deletes its own (see ros_teardown)."""
+    before = _dds_participants() if os.path.isdir('/proc/self/task') else 0
+    yield
+    if os.path.isdir('/proc/self/task'):
+        left = _dds_participants() - before
+        assert left <= 0, f'this test left {left} DDS participant(s) alive: nodes not destroyed'
+
+
 @pytest.fixture(scope='session')
 def repo_root() -> pathlib.Path:
     """Absolute path of the repository root."""

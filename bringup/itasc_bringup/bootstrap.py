@@ -134,11 +134,12 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     finally:
         runtime.reap()
+        stopped = composer is not None and composer.coordinator.state.endswith('NotifyStopped')
         if composer is not None:
             for entity in (composer.coordinator, composer.configurator, composer):
                 executor.remove_node(entity)
                 entity.destroy_node()
-        runtime.shutdown()
+        runtime.shutdown(orderly=stopped)
         if recorder is not None:
             recorder.close()
         node.destroy_node()

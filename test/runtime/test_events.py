@@ -10,6 +10,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from itasc_core.communication.events import EventListener, EventRaiser
 from itasc_core.composition.deployment import make_executor
+from ros_teardown import destroy_all
 
 SOURCES, EVENTS = 20, 500
 
@@ -52,4 +53,4 @@ def test_no_event_lost_and_order_kept_per_source():
             assert [m.seq for m in mine] == list(range(1, EVENTS + 1))
             assert [m.name for m in mine] == [f'e_{i}_{n}' for n in range(EVENTS)]
     finally:
-        rclpy.try_shutdown()
+        destroy_all(executor)

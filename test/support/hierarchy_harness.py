@@ -14,6 +14,7 @@ from itasc_core.composition.composer import Composer, bring_up
 from itasc_core.composition.deployment import Runtime, make_executor
 from itasc_core.composition.model import CompositeModel
 from itasc_core.entity import CompositeContext
+from ros_teardown import destroy_all
 
 
 class Hierarchy:
@@ -82,13 +83,6 @@ class Hierarchy:
 
     def close(self) -> None:
         self.runtime.reap()
-        for composer in list(self.composers()):
-            for node in (composer.coordinator, composer.configurator, composer):
-                try:
-                    self.executor.remove_node(node)
-                    node.destroy_node()
-                except Exception:  # noqa: BLE001 - already destroyed by its parent's Composer
-                    pass
         self.runtime.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown()
+        destroy_all(self.executor, *(node for composer in list(self.composers())
+                                     for node in (composer.coordinator, composer.configurator, composer)))

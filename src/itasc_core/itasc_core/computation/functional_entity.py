@@ -41,29 +41,33 @@ class FunctionalEntity(Entity):
 
     def __init__(self, name: str, *, composite: CompositeContext, parameters: dict[str, Any] | None = None) -> None:
         super().__init__(name, composite=composite)
-        values = dict(self.PARAMETERS)
-        values.update({k: coerce(self.PARAMETERS.get(k), v) for k, v in (parameters or {}).items()})
-        unknown = set(values) - set(self.PARAMETERS)
-        if unknown:
-            raise ValueError(f'{type(self).__name__} {name}: unknown parameters {sorted(unknown)}; '
-                             f'known: {sorted(self.PARAMETERS)}')
-        for key, value in values.items():
-            self.declare_parameter(key, value)
-        self.params: dict[str, Any] = values
         self.inputs: dict[str, InputPort] = {}
         self.outputs: dict[str, OutputPort] = {}
-        for spec in self.port_specs(values):
-            topic = self.port_topic(composite.namespace, name, spec.name)
-            if spec.direction == 'input':
-                self.inputs[spec.name] = InputPort(self, spec.with_id(topic))
-            else:
-                self.outputs[spec.name] = OutputPort(self, spec.with_id(topic))
-        reason = self.validate_parameters(values)
-        if reason:  # later changes are checked by _check_parameters
-            raise ValueError(f'{type(self).__name__} {name}: {reason}')
-        self.add_on_set_parameters_callback(self._check_parameters)
-        self.add_post_set_parameters_callback(self._parameters_set)
-        self.configure(values)
+        try:
+            values = dict(self.PARAMETERS)
+            values.update({k: coerce(self.PARAMETERS.get(k), v) for k, v in (parameters or {}).items()})
+            unknown = set(values) - set(self.PARAMETERS)
+            if unknown:
+                raise ValueError(f'{type(self).__name__} {name}: unknown parameters {sorted(unknown)}; '
+                                 f'known: {sorted(self.PARAMETERS)}')
+            for key, value in values.items():
+                self.declare_parameter(key, value)
+            self.params: dict[str, Any] = values
+            for spec in self.port_specs(values):
+                topic = self.port_topic(composite.namespace, name, spec.name)
+                if spec.direction == 'input':
+                    self.inputs[spec.name] = InputPort(self, spec.with_id(topic))
+                else:
+                    self.outputs[spec.name] = OutputPort(self, spec.with_id(topic))
+            reason = self.validate_parameters(values)
+            if reason:  # later changes are checked by _check_parameters
+                raise ValueError(f'{type(self).__name__} {name}: {reason}')
+            self.add_on_set_parameters_callback(self._check_parameters)
+            self.add_post_set_parameters_callback(self._parameters_set)
+            self.configure(values)
+        except BaseException:
+            self.destroy_node()  # a node that failed to construct must not stay in the graph
+            raise
 
     @staticmethod
     def port_topic(namespace: str, entity: str, port: str) -> str:

@@ -1,0 +1,28 @@
+"""Leave nothing of a test's ROS graph behind in the test process.
+
+rmw_fastrtps keeps a context's DDS participant alive as long as one node of the context exists,
+even after ``rclpy.shutdown``. Participants left over by earlier tests keep discovering the later
+ones inside the same process, and Fast DDS 2.14 can deadlock when a participant is deleted while
+it discovers another (seen here: ``DomainParticipant::set_listener`` spinning forever in
+``rmw_destroy_node``). So every test destroys every node it created before shutting rclpy down.
+"""
+
+from __future__ import annotations
+
+import rclpy
+
+__all__ = ['destroy_all']
+
+
+def destroy_all(executor, *nodes, context=None) -> None:
+    """Destroy every node on ``executor`` and ``nodes``, shut the executor and ``context`` down."""
+    on_executor = list(executor.get_nodes())
+    for node in on_executor:
+        executor.remove_node(node)
+    for node in dict.fromkeys([*on_executor, *nodes]):
+        try:
+            node.destroy_node()
+        except Exception:  # noqa: BLE001 - destroyed earlier (a Composer retires its entities)
+            pass
+    executor.shutdown()
+    rclpy.try_shutdown(context=context)
