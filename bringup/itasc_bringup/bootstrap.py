@@ -21,6 +21,8 @@ __all__ = ['main', 'parse_args']
 
 #: How long an orderly Stop may take before the bootstrap gives up waiting.
 STOP_TIMEOUT = 20.0
+#: How long destroying the nodes and the DDS participant may take (see end_process_within).
+TEARDOWN_TIMEOUT = 20.0
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -64,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from itasc_core.communication.events import EventListener, EventRaiser
     from itasc_core.composition.composer import bring_up
-    from itasc_core.composition.deployment import Runtime, make_executor
+    from itasc_core.composition.deployment import Runtime, make_executor, end_process_within
     from itasc_core.composition.model import walk
     from itasc_core.entity import CompositeContext
 
@@ -133,15 +135,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f'{root.name}: stopped ({"signal " + stop_requested[0] if stop_requested else "duration"})')
         return 0
     finally:
-        runtime.reap()
+        if recorder is not None:
+            recorder.close()
         stopped = composer is not None and composer.coordinator.state.endswith('NotifyStopped')
+        runtime.shutdown(orderly=stopped)  # the composite processes, each under its own deadline
+        end_process_within(TEARDOWN_TIMEOUT)
+        runtime.reap()
         if composer is not None:
             for entity in (composer.coordinator, composer.configurator, composer):
                 executor.remove_node(entity)
                 entity.destroy_node()
-        runtime.shutdown(orderly=stopped)
-        if recorder is not None:
-            recorder.close()
         node.destroy_node()
         rclpy.try_shutdown()
 

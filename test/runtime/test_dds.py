@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import sys
 import textwrap
+import time
 
 import pytest
 from processes import Spawned
@@ -47,3 +48,15 @@ def test_processes_discover_each_other_without_shared_memory():
         talker.kill()  # SIGKILL, as a crashed driver would end
         assert listener.finish(timeout=30) == 0, listener.output()
     assert not created, f'Fast DDS shared-memory segments were created: {sorted(created)}'
+
+
+def test_a_process_whose_teardown_hangs_still_ends():
+    """end_process_within: the deadline holds even while the main thread is stuck outside Python."""
+    hang = ('import time; from itasc_core.composition.deployment import end_process_within; '
+            'end_process_within(1.0); time.sleep(60)')
+    with Spawned([sys.executable, '-c', hang]) as process:
+        started = time.monotonic()
+        code = process.finish(timeout=20)
+        took = time.monotonic() - started
+    assert code == 1 and took < 10, (code, took)
+    assert process.err.startswith('Timeout (0:00:01)!'), process.err  # with every thread's stack

@@ -9,6 +9,7 @@ Nodes are destroyed between executor spins, never from inside a callback.
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import os
 import subprocess
@@ -20,7 +21,7 @@ from rclpy.node import Node
 
 from .model import CompositeModel
 
-__all__ = ['Runtime', 'DeployMode', 'make_executor']
+__all__ = ['Runtime', 'DeployMode', 'make_executor', 'end_process_within']
 
 DeployMode = Literal['single', 'per-composite']
 
@@ -33,6 +34,20 @@ def make_executor(context=None):
     except ImportError:  # rclpy older than Jazzy
         from rclpy.executors import SingleThreadedExecutor
         return SingleThreadedExecutor(context=context)
+
+
+def end_process_within(seconds: float = 20.0) -> None:
+    """From now on this process has ``seconds`` to end: call it when an executable starts its
+    teardown (destroying its nodes, and with the last one its DDS participant), after closing its
+    recording.
+
+    Fast DDS 2.14 can deadlock deleting a participant while it handles the discovery of remote
+    endpoints (seen here: ``DomainParticipant::set_listener`` busy-waiting in ``rmw_destroy_node``),
+    in C code that no Python signal handler interrupts. faulthandler's watchdog is a C thread: past
+    the deadline it prints every thread's stack and ends the process with exit code 1, instead of
+    leaving it hanging. The deadline also covers the interpreter's own finalization.
+    """
+    faulthandler.dump_traceback_later(seconds, exit=True)
 
 
 class Runtime:

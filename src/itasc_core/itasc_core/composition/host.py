@@ -21,11 +21,13 @@ from rclpy.signals import SignalHandlerOptions
 from ..communication.dds import configure_dds
 from ..entity import CompositeContext
 from .composer import bring_up
-from .deployment import Runtime, make_executor
+from .deployment import Runtime, make_executor, end_process_within
 from .model import CompositeModel
 
 #: Time to let the last events (e_<c>_stopped) reach the parent before the process exits.
 LINGER = 0.5
+#: How long destroying the nodes and the DDS participant may take (see end_process_within).
+TEARDOWN_TIMEOUT = 20.0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -63,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
                 break
     finally:
         runtime.shutdown(orderly=stopped_at is not None)
+        end_process_within(TEARDOWN_TIMEOUT)
         for node in (composer.coordinator, composer.configurator, composer):
             executor.remove_node(node)
             node.destroy_node()
