@@ -21,8 +21,6 @@ __all__ = ['main', 'parse_args']
 
 #: How long an orderly Stop may take before the bootstrap gives up waiting.
 STOP_TIMEOUT = 20.0
-#: How long destroying the nodes and the DDS participant may take (see end_process_within).
-TEARDOWN_TIMEOUT = 20.0
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -139,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
             recorder.close()
         stopped = composer is not None and composer.coordinator.state.endswith('NotifyStopped')
         runtime.shutdown(orderly=stopped)  # the composite processes, each under its own deadline
-        end_process_within(TEARDOWN_TIMEOUT)
+        end_process_within()
         runtime.reap()
         if composer is not None:
             for entity in (composer.coordinator, composer.configurator, composer):

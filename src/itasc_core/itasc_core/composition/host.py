@@ -26,8 +26,6 @@ from .model import CompositeModel
 
 #: Time to let the last events (e_<c>_stopped) reach the parent before the process exits.
 LINGER = 0.5
-#: How long destroying the nodes and the DDS participant may take (see end_process_within).
-TEARDOWN_TIMEOUT = 20.0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -65,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
                 break
     finally:
         runtime.shutdown(orderly=stopped_at is not None)
-        end_process_within(TEARDOWN_TIMEOUT)
+        end_process_within()
         for node in (composer.coordinator, composer.configurator, composer):
             executor.remove_node(node)
             node.destroy_node()
