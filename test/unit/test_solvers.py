@@ -10,10 +10,15 @@ from itasc_tasks.setpoint_generator import FixedSetpoint
 from itasc_tasks.task import TaskComputation
 from itasc_tasks.vkc import CartesianVKC, JointVKC
 
+PANDA_READY = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
+
 INF = np.full(7, np.inf)
-# closed-form comparisons need undamped WDLS: damping starts below s_min = 1e-3 here
-SOLVERS = [WdlsSolver(epsilon=1e-3), QpSolver(), QpSolver(backend='quadprog'),
-           QpSolver(direct=False)]
+# Closed-form comparisons need undamped WDLS: damping starts below s_min = 1e-3 here. Random
+# configurations come near singular (s_min ~ 0.007 for the elbow at seed 4), so the QP's
+# singularity threshold is 1e-3 too, checked on every step (tests share the solver objects).
+SINGULARITY = dict(singularity_epsilon=1e-3, singularity_check_period=1)
+SOLVERS = [WdlsSolver(epsilon=1e-3), QpSolver(**SINGULARITY), QpSolver(backend='quadprog', **SINGULARITY),
+           QpSolver(direct=False, **SINGULARITY)]
 IDS = ['wdls', 'qp-daqp', 'qp-quadprog', 'qp-daqp-via-qpsolvers']
 
 
@@ -79,7 +84,7 @@ def test_pink_cross_check(panda):
     dt, damping, gains = 0.01, 1e-6, [1.0, 0.05]
     cost = np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
     posture_cost = 1e-2
-    solver = QpSolver(regularization=damping, position_limit_gain=0.5)
+    solver = QpSolver(regularization=damping, position_limit_gain=0.5, **SINGULARITY)
     statuses = set()
     for i in range(20):
         gain = gains[i % 2]
@@ -180,6 +185,43 @@ def test_wdls_singular_configuration_stays_bounded(panda):
     assert np.linalg.norm(J @ result.qdot - feasible) < 1e-3
 
 
+@pytest.mark.parametrize('solver', SOLVERS[1:], ids=IDS[1:])
+def test_qp_reports_a_singular_configuration_and_stays_bounded(panda, solver):
+    """The same stretched arm through the QP: status singular, qdot bounded by the joint limits,
+    the well-conditioned directions still tracked; and no singular flag away from it."""
+    panda.set_position_vector(np.array([0.0, 0.0, 0.0, -1e-6, 0.0, np.pi / 2, 0.0]))
+    panda.update()
+    J = panda.frame_jacobian('ee')
+    U, s, _ = np.linalg.svd(J)
+    limits = dict(q=np.zeros(7), lower=-INF[:7], upper=INF[:7], velocity_limit=np.full(7, 2.0), dt=0.01)
+    result = solver.solve([ConstraintRows.equality('hand', J, 0.1 * U[:, -1])], **limits)
+    assert result.singular and result.status == 'singular'
+    assert result.min_singular_value < 1e-5 and s[-1] < 1e-5
+    assert np.isfinite(result.qdot).all() and np.abs(result.qdot).max() <= 2.0 + 1e-9
+    result = solver.solve([ConstraintRows.equality('hand', J, 0.1 * U[:, 0])], **limits)
+    assert np.linalg.norm(J @ result.qdot - 0.1 * U[:, 0]) < 1e-3
+    panda.set_position_vector(np.array(PANDA_READY))
+    panda.update()
+    J = panda.frame_jacobian('ee')
+    result = solver.solve([ConstraintRows.equality('hand', J, 0.1 * np.ones(6))], **limits)
+    assert not result.singular and result.status == 'ok'
+    assert result.min_singular_value == pytest.approx(np.linalg.svd(J, compute_uv=False)[-1])
+
+
+def test_qp_checks_singularity_every_period_th_step(panda):
+    """Between checks the last measured value is reported, then it is measured again."""
+    solver = QpSolver(singularity_check_period=3)
+    limits = dict(q=np.zeros(7), lower=-INF[:7], upper=INF[:7], velocity_limit=np.full(7, 2.0), dt=0.01)
+    stretched, ready = np.array([0.0, 0.0, 0.0, -1e-6, 0.0, np.pi / 2, 0.0]), np.array(PANDA_READY)
+    statuses = []
+    for q in (stretched, ready, ready, ready):
+        panda.set_position_vector(q)
+        panda.update()
+        rows = [ConstraintRows.equality('hand', panda.frame_jacobian('ee'), np.zeros(6))]
+        statuses.append(solver.solve(rows, **limits).singular)
+    assert statuses == [True, True, True, False]
+
+
 @pytest.mark.parametrize('solver', SOLVERS, ids=IDS)
 def test_infeasible_inequalities_and_bad_input_never_nan(solver):
     e0 = np.eye(3)[:1]
@@ -193,7 +235,7 @@ def test_infeasible_inequalities_and_bad_input_never_nan(solver):
     assert result.status == 'infeasible' and np.isfinite(result.qdot).all()
 
 
-@pytest.mark.parametrize('solver', SOLVERS + [QpSolver(backend='osqp')], ids=IDS + ['osqp'])
+@pytest.mark.parametrize('solver', SOLVERS + [QpSolver(backend='osqp', **SINGULARITY)], ids=IDS + ['osqp'])
 def test_inequality_rows_are_bounds(solver):
     """min |qdot - (1, 1)|^2 s.t. qdot_0 + qdot_1 <= 1 at a higher level: (0.5, 0.5)."""
     rows = [ConstraintRows.bounds('sum', np.array([[1.0, 1.0]]), [-np.inf], [1.0]),

@@ -15,6 +15,14 @@ rows never reach the backend. With all tasks at one priority this is exactly pin
 (``weights = cost**2``, ``regularization = damping``, ``position_limit_gain =
 config_limit_gain``). If a level fails the result of the last solved level is returned with
 status ``infeasible``; an inequality row left violated also reports ``infeasible``.
+
+Singularity is measured per equality task: the smallest non-zero singular value of the task's
+Jacobian (rows scaled by sqrt of their weight relative to the task's largest), in the directions
+higher levels leave free. Below ``singularity_epsilon`` the step reports ``singular``; the
+regularisation and the joint limits keep qdot bounded there, so nothing else changes. Per task,
+not per level: a low-weight task sharing a level (a posture regularising a frame task) is not a
+singularity. The SVDs cost about a third of a step, and a singularity builds up over many ticks,
+so they run every ``singularity_check_period``-th step; the steps between report the last value.
 """
 
 from __future__ import annotations
@@ -41,14 +49,16 @@ class QpSolver:
     def __init__(self, *, backend: str = 'daqp', direct: bool = True,
                  joint_weights: float | np.ndarray = 1.0, regularization: float = 1e-8,
                  position_limit_gain: float = 0.5, slack_tolerance: float = 1e-6,
-                 rank_tolerance: float = 1e-6, backend_options: dict | None = None) -> None:
+                 rank_tolerance: float = 1e-6, singularity_epsilon: float = 0.02,
+                 singularity_check_period: int = 10, backend_options: dict | None = None) -> None:
         """``backend``: any ``qpsolvers.available_solvers`` name. ``direct``: with 'daqp', call
         DAQP's own API instead of ``qpsolvers.solve_qp`` (same solver, ~20 us less per QP).
         ``regularization`` rho weighs the joint-space term (``joint_weights`` W_q);
         ``position_limit_gain`` in (0, 1] is the share of the distance to a position limit
         allowed in one cycle; an inequality row violated by more than ``slack_tolerance``
         reports infeasible; higher-level equality directions weaker than ``rank_tolerance``
-        (relative, pivoted QR) are not locked; ``backend_options`` go to the backend."""
+        (relative, pivoted QR) are not locked; ``singularity_epsilon``: see the module docstring;
+        ``backend_options`` go to the backend."""
         if backend not in qpsolvers.available_solvers:
             raise ValueError(f'QP backend {backend!r} is not available; available: '
                              f'{qpsolvers.available_solvers}')
@@ -62,6 +72,10 @@ class QpSolver:
         self.position_limit_gain = position_limit_gain
         self.slack_tolerance = slack_tolerance
         self.rank_tolerance = rank_tolerance
+        self.singularity_epsilon = singularity_epsilon
+        self.singularity_check_period = max(1, int(singularity_check_period))
+        self._step = 0
+        self._min_singular_value = np.inf
         defaults = {'osqp': {'eps_abs': 1e-7, 'eps_rel': 1e-7, 'verbose': False,
                              'raise_error': False},
                     'proxqp': {'eps_abs': 1e-9, 'eps_rel': 0.0}}
@@ -78,9 +92,14 @@ class QpSolver:
         locked = np.zeros((0, n))  # Z^T: orthonormal rows spanning higher-level equality rows
         kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # higher-level inequalities
         levels = group_levels(rows)
+        check = self._step % self.singularity_check_period == 0
+        self._step += 1
+        free_parts: list[np.ndarray] = []  # each equality task's Jacobian in its free directions
         for k, level in enumerate(levels):
             eq = [r for r in level if not r.inequality]
             ineq = [r for r in level if r.inequality]
+            if check:
+                free_parts += [_free_part(r, locked) for r in eq]
             x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
             if x is None:
                 result.infeasible = True
@@ -103,6 +122,10 @@ class QpSolver:
         # a bound shaped the solution (a zero bound: the joint rests exactly at its limit)
         result.saturated = bool(((ub - qdot <= 1e-9) & (np.abs(ub) > 1e-9)).any()
                                 or ((qdot - lb <= 1e-9) & (np.abs(lb) > 1e-9)).any())
+        if check:
+            self._min_singular_value = _smallest_singular_value(free_parts)
+        result.min_singular_value = self._min_singular_value
+        result.singular = bool(result.min_singular_value < self.singularity_epsilon)
         result.qdot = qdot
         result.set_status()
         result.solve_time = perf_counter() - t0
@@ -201,3 +224,30 @@ class QpSolver:
         except Exception:  # a backend failing on a degenerate level is an infeasible level
             return None
         return None if x is None or not np.isfinite(x).all() else x[:n]
+
+
+def _free_part(task: ConstraintRows, locked: np.ndarray) -> np.ndarray:
+    """``task``'s Jacobian, rows scaled by sqrt of their weight relative to the task's largest,
+    restricted to the directions not ``locked`` by higher levels."""
+    sw = np.sqrt(task.weights)
+    top = float(sw.max(initial=0.0))
+    A = (sw / top)[:, None] * task.J if top > 0.0 else np.zeros_like(task.J)
+    return A - (A @ locked.T) @ locked if locked.shape[0] else A
+
+
+def _smallest_singular_value(parts: list[np.ndarray], *, truncation: float = 1e-9) -> float:
+    """The smallest non-zero singular value over ``parts`` (inf if none), in one batched SVD
+    (zero-padded to a common row count; padding adds only zero singular values). Values below
+    ``truncation`` relative to a part's largest are directions higher levels fixed or no row
+    reaches, not singularities (as in the WDLS Solver)."""
+    if not parts:
+        return np.inf
+    rows = max(p.shape[0] for p in parts)
+    stack = np.zeros((len(parts), rows, parts[0].shape[1]))
+    for i, part in enumerate(parts):
+        stack[i, :part.shape[0]] = part
+    if not np.isfinite(stack).all():
+        return np.inf  # non-finite rows: the level reports infeasible
+    s = np.linalg.svd(stack, compute_uv=False)
+    s[s <= truncation * np.maximum(1.0, s[:, :1])] = np.inf
+    return float(s.min(initial=np.inf))
