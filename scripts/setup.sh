@@ -189,7 +189,7 @@ PYEOF
 # modules are not inputs: with --symlink-install they are used in place.
 build_inputs() {
   local d
-  for d in "$ROOT/src" "$ROOT/bringup"; do
+  for d in "$ROOT/src" "$ROOT/bringup" "$ROOT/vendor"; do
     [ -d "$d" ] || continue
     find "$d" -maxdepth 3 \( -name __pycache__ -o -name '*.egg-info' \) -prune -o -type f \
       \( -name package.xml -o -name setup.py -o -name setup.cfg -o -name CMakeLists.txt \
@@ -198,7 +198,21 @@ build_inputs() {
   done | LC_ALL=C sort
   echo "$ROOT/scripts/setup.sh"
 }
-BUILD_KEY="$( { hash_files $(build_inputs); echo "$REQ_KEY";
+# tf2_msgs (the type of /tf) has no PyPI wheel: vendor/tf2_msgs, Jazzy's interface files, is
+# built with the workspace only when no tf2_msgs is installed (the venv, or a sourced ROS 2
+# install); it never shadows a real one. Outside our own install/, which it may be in already.
+BASE_PATHS=(src bringup)
+tf2_msgs_installed() {
+  local prefix IFS=:
+  for prefix in $VENV ${AMENT_PREFIX_PATH:-}; do
+    case "$prefix" in "$ROOT/install"|"$ROOT/install/"*) continue ;; esac
+    [ -f "$prefix/share/ament_index/resource_index/packages/tf2_msgs" ] && return 0
+  done
+  return 1
+}
+tf2_msgs_installed || BASE_PATHS+=(vendor)
+
+BUILD_KEY="$( { hash_files $(build_inputs); echo "$REQ_KEY" "${BASE_PATHS[*]}";
                [ -d "$ROOT/config" ] && (cd "$ROOT" && find -L config -type f -not -path '*/__pycache__/*' | LC_ALL=C sort);
                true; } | sha256sum | cut -c1-16)"
 
@@ -207,7 +221,7 @@ if stamp_ok "$BUILD_STAMP" "$BUILD_KEY" && [ -f "$ROOT/install/setup.bash" ]; th
 fi
 
 fix_cmake_exports
-log "colcon build --symlink-install (src/, bringup/) -> install/"
+log "colcon build --symlink-install (${BASE_PATHS[*]}) -> install/"
 (
   cd "$ROOT"
   # colcon, cmake, the rosidl generators and setup.py must all use the venv's python.
@@ -218,7 +232,7 @@ log "colcon build --symlink-install (src/, bringup/) -> install/"
   export COLCON_LOG_PATH="$ROOT/log"
   unset PYTHONPATH
   "$VENV/bin/colcon" build \
-    --base-paths src bringup \
+    --base-paths "${BASE_PATHS[@]}" \
     --build-base build --install-base install \
     --symlink-install \
     --parallel-workers 2 \
