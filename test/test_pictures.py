@@ -64,8 +64,7 @@ def write_run(path: pathlib.Path, duration: float = 8.0) -> None:
     from mcap.writer import Writer
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    from itasc_bringup.recording.msgdefs import full_definition
-    from itasc_bringup.recording.recorder import qos_profiles_yaml
+    from itasc_bringup.recording.definitions import definition as full_definition
 
     type_names = ('itasc_msgs/msg/CoordinatorState', 'itasc_msgs/msg/TaskState',
                   'sensor_msgs/msg/JointState')
@@ -112,7 +111,7 @@ def write_run(path: pathlib.Path, duration: float = 8.0) -> None:
                 schemas[type_name] = writer.register_schema(type_name, encoding, text.encode())
             if topic not in channels:
                 channels[topic] = writer.register_channel(topic, 'cdr', schemas[type_name], {
-                    'offered_qos_profiles': qos_profiles_yaml([])})
+                    'offered_qos_profiles': ''})
             stamp = t0 + int(t * 1e9)
             writer.add_message(channels[topic], log_time=stamp, publish_time=stamp,
                                data=bytes(store.serialize_cdr(msg, type_name)))

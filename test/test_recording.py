@@ -19,6 +19,7 @@ from rclpy.duration import Duration  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
+REPO = pathlib.Path(__file__).resolve().parent.parent
 N_JOINT_STATES = 40
 N_EVENTS = 15
 
@@ -207,3 +208,85 @@ def test_signalled_recorder_leaves_a_readable_file(tmp_path, variant, signum, co
     assert topics.count('/app/here/joint_states') == 20, out
     if variant != 'module-main':
         assert topics.count('/app/joint_states') > 10
+
+
+def test_a_port_written_as_soon_as_it_exists_is_recorded_from_its_first_sample(context, tmp_path):
+    """The data-flow topics come from the model, not from a graph scan: a port that writes its
+    first sample right after it was created (a fast bring-up) has that sample recorded."""
+    from std_msgs.msg import Float64MultiArray
+
+    from itasc_bringup.apps import load_composition
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.ports import OutputPort, PortSpec
+
+    model = load_composition('pattern_demo')
+    path = tmp_path / 'bag'
+    recorder = Recorder(path, prefix='/app', context=context)
+    topics = recorder.record_model(model)
+    assert '/app/plant/state' in topics and '/app/program/track/controller/error' in topics
+    node = rclpy.create_node('plant', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(recorder)
+    try:
+        port = OutputPort(node, PortSpec(name='state', direction='output', msg_type=Float64MultiArray,
+                                         id='/app/plant/state'))
+        port.write(Float64MultiArray(data=[1.0]))  # the first tick, at once
+        port.write(Float64MultiArray(data=[2.0]))
+        assert _spin_until(executor, lambda: recorder.counts['/app/plant/state'] == 2, 5.0), recorder.counts
+        assert recorder.last('/app/plant/state').data.tolist() == [2.0]
+    finally:
+        executor.shutdown()
+        recorder.destroy_node()
+        node.destroy_node()
+    _, messages = _read_all(path)
+    assert [m.data.tolist() for t, _, m in messages if t == '/app/plant/state'] == [[1.0], [2.0]]
+
+
+def test_a_recorded_run_holds_every_data_flow_topic_from_the_first_tick(tmp_path):
+    """bootstrap --record: for every data-flow topic of the model, the first recorded message is
+    the one of the program's first tick."""
+    import yaml
+
+    from itasc_bringup.apps import load_composition
+    from itasc_bringup.recording.topics import data_flow_topics
+
+    bag = tmp_path / 'run'
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--duration', '1.5',
+                  '--record', str(bag)]) as app:
+        assert app.finish(timeout=120) == 0, app.output()
+    _, messages = _read_all(bag)
+    by_topic: dict[str, list] = {}
+    for topic, _, msg in messages:
+        by_topic.setdefault(topic, []).append(msg)
+    model_topics = data_flow_topics(load_composition('approach_object'))
+    retreat = [t for t in model_topics if '/Retreat/' in t]   # a task that runs only after 'approach'
+    running = [t for t in model_topics if t not in retreat and not t.endswith('/pose')]
+    assert not set(running) - set(by_topic), f'never recorded: {set(running) - set(by_topic)}'
+
+    def stamp(msg) -> float:
+        s = msg.header.stamp if hasattr(msg, 'header') else msg.stamp
+        return s.sec + 1e-9 * s.nanosec
+    first_tick = stamp(by_topic['/approach_object/itasc/Solver/status'][0])
+    stamped = [t for t in running if hasattr(by_topic[t][0], 'stamp') or hasattr(by_topic[t][0], 'header')]
+    program_time = [t for t in stamped if '/Driver_' not in t]   # a Driver stamps with the clock
+    assert len(program_time) >= 7
+    # a Task composite is switched on by its own Coordinator, possibly a tick after the program's
+    # Solver: its topics start together, at its own first tick
+    first = {t: stamp(by_topic[t][0]) for t in program_time}
+    for topic in program_time:
+        task = topic.split('/')[-3]
+        own_first = min(v for t, v in first.items() if t.split('/')[-3] == task)
+        assert first[topic] == (first_tick if task == 'itasc' else own_first), (topic, first)
+        assert own_first - first_tick < 0.5, (topic, first)
+    # the first tick as the program sees it: the setpoint generator starts, the Driver has not moved
+    assert by_topic['/approach_object/itasc/ApproachObject/SPG/progress'][0].data == 0.0
+    driver = by_topic['/approach_object/Driver_panda/joint_state'][0]
+    ready = yaml.safe_load((REPO / 'config' / 'robots' / 'panda_ready.yaml').read_text())
+    assert dict(zip(driver.name, driver.position.tolist())) == pytest.approx(ready, abs=1e-12)
+    assert not driver.velocity.any()
+    # topics without a stamp: as many messages as the stamped topics of the same entity group
+    for topic in set(running) - set(stamped):
+        group = topic.rsplit('/', 2)[0]
+        reference = (f'{group}/Scene/joint_state' if topic.split('/')[-2] == 'Scene'
+                     else f'{group}/Rows/state')
+        assert len(by_topic[topic]) == len(by_topic[reference]), (topic, reference)

@@ -6,7 +6,7 @@ the model's configurations), commands ``e_<root>_configure`` and lets the life-c
 hierarchy to Running. On ``--duration`` expiry, Ctrl-C or SIGTERM it raises ``e_<root>_stop`` and
 waits for the orderly Stop of the whole hierarchy, then exits 0.
 
-    bootstrap <app name or model path> [--duration SECONDS] [--record FILE.mcap]
+    bootstrap <app name or model path> [--duration SECONDS] [--record DIR|FILE.mcap]
               [--deploy single|per-composite] [--rate HZ]
 """
 
@@ -28,7 +28,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     parser.add_argument('--duration', type=float, default=None,
                         help='stop SECONDS after the root reached Running (or Safety)')
-    parser.add_argument('--record', metavar='FILE.mcap', default=None, help='record the run to MCAP')
+    parser.add_argument('--record', metavar='DIR|FILE.mcap', default=None,
+                        help='record the run: a rosbag2 bag folder DIR (metadata.yaml + MCAP), or one FILE.mcap')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--rate', type=float, default=None, help='override the Timer rate (Hz)')
     args = parser.parse_args(argv)
@@ -86,11 +87,17 @@ def main(argv: list[str] | None = None) -> int:
         if args.record:
             from itasc_core.communication.qos import EVENT_QOS, STATE_QOS
 
+            from .recording.bag import BagExists
             from .recording.recorder import Recorder
-            recorder = Recorder(path=args.record, prefix=root.namespace)
+            try:
+                recorder = Recorder(path=args.record, prefix=root.namespace)
+            except BagExists as err:
+                print(f'error: --record: {err}', file=sys.stderr)
+                return 2
             for path, _ in walk(model):  # every event of the bring-up, not only those after discovery
                 recorder.record(f'{path}/events', 'itasc_msgs/msg/Event', qos=EVENT_QOS)
                 recorder.record(f'{path}/state', 'itasc_msgs/msg/CoordinatorState', qos=STATE_QOS)
+            recorder.record_model(model, namespace=root.namespace)  # the data flow from the first tick
             executor.add_node(recorder)
         raiser = EventRaiser(node, topic=root.events_topic)
         composer = bring_up(model=model, context=root, runtime=runtime)

@@ -1,28 +1,29 @@
-"""The run recorder: an rclpy node that records every topic under a namespace to one MCAP file,
-written as a ROS 2 bag (SPEC, product paragraph: "... while recording the whole run to MCAP";
-paper §6.1/§7: Coordinators publish their state and composites their events, so a recording
-shows the data flow, the events and every life-cycle transition of a run).
+"""The run recorder: an rclpy node that records every topic under a namespace to a rosbag2 bag
+(SPEC, product paragraph: "... while recording the whole run to MCAP"; paper §6.1/§7:
+Coordinators publish their state and composites their events, so a recording shows the data
+flow, the events and every life-cycle transition of a run).
 
-The file follows the MCAP ``ros2`` profile as rosbag2's MCAP storage plugin writes it:
+``Recorder(DIR)`` writes a rosbag2 bag folder (``metadata.yaml`` and one MCAP file) that
+``ros2 bag info/play`` and rosbags open; ``Recorder(FILE.mcap)`` writes the MCAP file alone
+(:mod:`.bag` describes both).
 
-* one Schema per message type: name ``pkg/msg/Type``, encoding ``ros2msg``, data the complete
-  concatenated message definition (see :mod:`.msgdefs`);
-* one Channel per topic: message encoding ``cdr``, metadata ``offered_qos_profiles`` (the
-  publishers' QoS as rosbag2's YAML, version 9) and ``topic_type_hash`` (``RIHS01_...``);
-* Messages as received: the CDR bytes untouched (``raw=True`` subscriptions), log time and
-  publish time both the receive time (ns since the epoch).
+Topics known from the model are recorded from the start: :meth:`Recorder.record_model`
+subscribes to every data-flow topic of a composition model, and :meth:`Recorder.record` to any
+other topic (a composite's event and state topics), before any publisher exists, so the first
+tick is in the recording. Other topics are discovered: every ``scan_period`` the node looks at
+the ROS graph and subscribes to each new topic under ``prefix`` with a QoS that matches its
+publishers: keep-last ``depth``, reliable unless a publisher is best effort, transient local when
+all publishers offer it (the Coordinators' latched ``.../state`` topics).
 
-Topics are discovered, not listed: every ``scan_period`` the node looks at the ROS graph and
-subscribes to each new topic under ``prefix`` with a QoS that matches its publishers: keep-last
-``depth``, reliable unless a publisher is best effort, transient local when all publishers offer
-it (the Coordinators' latched ``.../state`` topics: a state published before the recorder
-subscribed is still recorded).
+:meth:`Recorder.last` answers whether (and what) a topic's newest message was written, e.g. a
+composite's final state before the recording is closed.
 
-Ending a recording: :meth:`Recorder.close` finishes the file (MCAP summary and footer) and is
-idempotent; ``destroy_node()`` and interpreter exit (atexit) call it too. With rclpy's default signal handling, SIGINT/SIGTERM make ``spin`` raise
-(``KeyboardInterrupt`` / ``ExternalShutdownException``) so the caller's ``finally`` runs; for a
-process that disables rclpy's handlers, :func:`install_signal_handlers` does the job. Only a
-SIGKILL loses the summary; the file is flushed every ``flush_period`` so that ``mcap recover``
+Ending a recording: :meth:`Recorder.close` finishes the bag and is idempotent;
+``destroy_node()`` and interpreter exit (atexit) call it too. With rclpy's default signal
+handling, SIGINT/SIGTERM make ``spin`` raise (``KeyboardInterrupt`` /
+``ExternalShutdownException``) so the caller's ``finally`` runs; for a process that disables
+rclpy's handlers, :func:`install_signal_handlers` does the job. Only a SIGKILL loses the summary
+(and metadata.yaml); the MCAP file is flushed every ``flush_period`` so that ``mcap recover``
 can still salvage the data.
 """
 
@@ -37,42 +38,18 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
-import yaml
-from mcap.writer import CompressionType, Writer
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                       ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 
-from .msgdefs import DefinitionNotFound, full_definition
+from .bag import BagWriter
+from .definitions import DefinitionNotFound
 
 __all__ = ['Recorder', 'install_signal_handlers', 'main']
-
-_COMPRESSION = {'none': CompressionType.NONE, 'lz4': CompressionType.LZ4,
-                'zstd': CompressionType.ZSTD}
-
-
-def _duration_yaml(duration: Any) -> dict[str, int]:
-    ns = int(duration.nanoseconds)
-    return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
-
-
-def qos_profiles_yaml(profiles: Iterable[QoSProfile]) -> str:
-    """The ``offered_qos_profiles`` channel metadata, as rosbag2 serializes it (version 9)."""
-    return yaml.safe_dump([{
-        'history': HistoryPolicy(p.history).name.lower(),
-        'depth': int(p.depth),
-        'reliability': ReliabilityPolicy(p.reliability).name.lower(),
-        'durability': DurabilityPolicy(p.durability).name.lower(),
-        'deadline': _duration_yaml(p.deadline),
-        'lifespan': _duration_yaml(p.lifespan),
-        'liveliness': LivelinessPolicy(p.liveliness).name.lower(),
-        'liveliness_lease_duration': _duration_yaml(p.liveliness_lease_duration),
-        'avoid_ros_namespace_conventions': bool(p.avoid_ros_namespace_conventions),
-    } for p in profiles], sort_keys=False, default_flow_style=False)
 
 
 def _import_message(type_name: str) -> type:
@@ -86,12 +63,14 @@ def _under(topic: str, prefix: str) -> bool:
 
 
 class Recorder(Node):
-    """Node ``recorder``: records all topics under ``prefix`` to the MCAP file ``path``."""
+    """Node ``recorder``: records all topics under ``prefix`` to the bag (folder or ``.mcap``) ``path``."""
 
     def __init__(self, path: str | os.PathLike, *, prefix: str = '/app',
                  context: Context | None = None, node_name: str = 'recorder',
                  scan_period: float = 0.2, depth: int = 1000, compression: str = 'zstd',
                  flush_period: float = 1.0, exclude: Iterable[str] = ()) -> None:
+        # the bag first: a path that cannot take a bag fails before any node exists
+        self._bag = BagWriter(path, compression=compression, library='itasc_bringup.recording (mcap python)')
         super().__init__(node_name, context=context)
         self.path = os.fspath(path)
         self.prefix = prefix
@@ -101,8 +80,10 @@ class Recorder(Node):
         self.topics: dict[str, str] = {}
         #: topic -> number of messages written.
         self.counts: dict[str, int] = {}
+        self._last: dict[str, bytes] = {}
+        self._classes: dict[str, type] = {}
+        self._listeners: list[Callable[[str], None]] = []
         self._skipped: set[str] = set()
-        self._schemas: dict[str, int] = {}
         self._lock = threading.Lock()
         self._owner: int | None = None      # thread id holding _lock while writing
         self._pending_interrupt = False
@@ -110,17 +91,30 @@ class Recorder(Node):
         self._last_flush = time.monotonic()
         self._flush_period = flush_period
 
-        os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
-        self._stream = open(self.path, 'wb')
-        self._writer = Writer(self._stream, compression=_COMPRESSION[compression])
-        self._writer.start(profile='ros2', library='itasc_bringup.recording (mcap python)')
-
         self._atexit = _weak_close(self)
         atexit.register(self._atexit)
         self._timer = self.create_timer(scan_period, self._scan)
         self._scan()
 
-    # ----------------------------------------------------------------- discovery
+    # ----------------------------------------------------------------- what is recorded
+    def record(self, topic: str, type_name: str, *, qos: QoSProfile) -> None:
+        """Record ``topic`` from now on, before any publisher exists (e.g. a composite's event and
+        state topics, known from the model, so that no event of the bring-up is missed)."""
+        if topic not in self.topics:
+            self._subscribe(topic, type_name, qos=qos, offered=[qos])
+
+    def record_model(self, model: Any, *, namespace: str | None = None) -> list[str]:
+        """Record every data-flow topic of the composition ``model`` (living in ``namespace``,
+        default ``/<model name>``) from now on; call it before the hierarchy is configured so
+        that the first tick is recorded. Returns the topics."""
+        from itasc_core.communication.qos import DATA_QOS
+
+        from .topics import data_flow_topics
+        topics = data_flow_topics(model, namespace=namespace)
+        for topic, type_name in topics.items():
+            self.record(topic, type_name, qos=DATA_QOS)
+        return list(topics)
+
     def _scan(self) -> None:
         if self._closed:
             return
@@ -135,12 +129,13 @@ class Recorder(Node):
             if len(types) > 1:
                 self.get_logger().warning(
                     f'{topic} has several types {types}; recording {types[0]}')
-            self._subscribe_discovered(topic, types[0], publishers)
+            self._subscribe(topic, types[0], qos=self._qos(publishers),
+                            offered=[p.qos_profile for p in publishers])
         if time.monotonic() - self._last_flush >= self._flush_period:
             self._last_flush = time.monotonic()
             with self._lock:
                 if not self._closed:
-                    self._writer.flush()
+                    self._bag.flush()
 
     def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]
@@ -153,37 +148,23 @@ class Recorder(Node):
                          else ReliabilityPolicy.RELIABLE),
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
-    def record(self, topic: str, type_name: str, *, qos: QoSProfile) -> None:
-        """Record ``topic`` from now on, before any publisher exists (e.g. a composite's event and
-        state topics, known from the model, so that no event of the bring-up is missed)."""
-        if topic not in self.topics:
-            self._subscribe(topic, type_name, qos=qos, offered=[qos], type_hash='')
-
-    def _subscribe_discovered(self, topic: str, type_name: str, publishers: list) -> None:
-        type_hash = str(publishers[0].topic_type_hash)
-        self._subscribe(topic, type_name, qos=self._qos(publishers), offered=[p.qos_profile for p in publishers],
-                        type_hash='' if type_hash == 'INVALID' else type_hash)
-
-    def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile],
-                   type_hash: str) -> None:
+    def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile]) -> None:
         try:
             msg_class = _import_message(type_name)
-            encoding, definition = full_definition(type_name)
+            with self._lock:
+                if self._closed:
+                    return
+                channel_id = self._bag.add_topic(topic, type_name, offered=offered)
         except (ImportError, AttributeError, ValueError, DefinitionNotFound) as err:
             self._skipped.add(topic)
             self.get_logger().warning(f'not recording {topic} ({type_name}): {err}')
             return
-        metadata = {'offered_qos_profiles': qos_profiles_yaml(offered), 'topic_type_hash': type_hash}
-        with self._lock:
-            if self._closed:
-                return
-            schema_id = self._schemas.get(type_name)
-            if schema_id is None:
-                schema_id = self._writer.register_schema(type_name, encoding, definition.encode())
-                self._schemas[type_name] = schema_id
-            channel_id = self._writer.register_channel(topic, 'cdr', schema_id, metadata)
         self.topics[topic] = type_name
         self.counts[topic] = 0
+        self._classes[topic] = msg_class
+        # keep-last ``depth``, whatever the caller's profile says about the queue
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(self.depth, qos.depth),
+                         reliability=qos.reliability, durability=qos.durability)
         callback = functools.partial(self._write, topic, channel_id)
         self.create_subscription(msg_class, topic, callback, qos, raw=True)
         self.get_logger().debug(f'recording {topic} ({type_name})')
@@ -191,35 +172,45 @@ class Recorder(Node):
     # ----------------------------------------------------------------- writing
     def _write(self, topic: str, channel_id: int, data: bytes) -> None:
         stamp = time.time_ns()
+        data = bytes(data)
         with self._lock:
             if self._closed:
                 return
             self._owner = threading.get_ident()
             try:
-                self._writer.add_message(channel_id, log_time=stamp, data=bytes(data),
-                                         publish_time=stamp)
+                self._bag.write(channel_id, data, time_ns=stamp)
                 self.counts[topic] += 1
+                self._last[topic] = data
             finally:
                 self._owner = None
+        for listener in self._listeners:
+            listener(topic)
         if self._pending_interrupt:  # a signal arrived during the write above
             self.close()
             raise KeyboardInterrupt
+
+    # ----------------------------------------------------------------- what was written
+    def last(self, topic: str) -> Any | None:
+        """The newest message of ``topic`` written to the bag (deserialized), or None."""
+        data = self._last.get(topic)
+        return None if data is None else deserialize_message(data, self._classes[topic])
+
+    def on_write(self, listener: Callable[[str], None]) -> None:
+        """Call ``listener(topic)`` after every message written (in the thread that wrote it)."""
+        self._listeners.append(listener)
 
     @property
     def closed(self) -> bool:
         return self._closed
 
     def close(self) -> None:
-        """Finish the MCAP file (summary, footer) and close it. Safe to call any number of
-        times, from any thread, before or after the node or its context is destroyed."""
+        """Finish the bag (MCAP summary and footer, metadata.yaml) and close it. Safe to call any
+        number of times, from any thread, before or after the node or its context is destroyed."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-            try:
-                self._writer.finish()
-            finally:
-                self._stream.close()
+            self._bag.close()
         atexit.unregister(self._atexit)
 
     def destroy_node(self) -> None:
@@ -258,7 +249,7 @@ def install_signal_handlers(recorder: Recorder, *,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m itasc_bringup.recording.recorder OUT.mcap [--prefix /app]``."""
+    """``python -m itasc_bringup.recording.recorder OUT_DIR|OUT.mcap [--prefix /app]``."""
     import argparse
 
     import rclpy
