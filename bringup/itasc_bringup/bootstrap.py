@@ -103,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         composer = bring_up(model=model, context=root, runtime=runtime)
         coordinator = composer.coordinator
         composites = {m.name: path for path, m in walk(model)}
+        from .visualization import start_visualization  # robot_description, TF, markers, /diagnostics
+        start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
         status = StatusDisplay(node, composites=composites,
                                rate=lambda: composer.timer.achieved_rate() if composer.timer else 0.0)
         failures: list[str] = []

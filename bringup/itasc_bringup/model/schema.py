@@ -97,11 +97,13 @@ class ObjectMotion(_Model):
 
 class Object(Placement):
     """An object without controllable DOF, at ``xyz``/``rpy``, moving along ``motion``, or where
-    its Sensor says."""
+    its Sensor says. ``size`` [m], the diameter of the sphere that shows it (an obstacle) in RViz,
+    Foxglove and itasc-scene; Tasks measure distances to its frames, not to its surface."""
 
     name: str = Field(pattern=NAME)
     frames: list[ObjectFrame] = Field(default_factory=list)
     motion: ObjectMotion | None = None
+    size: float | None = Field(default=None, gt=0)
 
 
 # -- Task ----------------------------------------------------------------------------------------

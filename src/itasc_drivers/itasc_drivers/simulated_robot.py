@@ -4,7 +4,8 @@ Every tick of the program it integrates the commanded joint velocities over the 
 previous tick (so at the program rate) on the robot's kinematic model (a mobile base moves in
 its own frame, as the Solver commands it), within the joint velocity and position limits of the
 URDF, and publishes the joint state (``sensor_msgs/JointState`` with names, positions and the
-applied velocities). Input ``command``: the Solver's ``JointVelocities(program)``, from which it
+applied velocities), also on ``<composite namespace>/<robot>/joint_states`` for
+robot_state_publisher and RViz. Input ``command``: the Solver's ``JointVelocities(program)``, from which it
 takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)``.
 
 ``main()`` runs one standalone, as its own process, on plain topics.
@@ -55,6 +56,9 @@ class SimulatedRobot(FunctionalEntity):
         self.robot.set_position_vector(self._within_limits(self.robot.positions))
         self.velocity = np.zeros(self.robot.nv)
         self._last_t: float | None = None
+        # the conventional topic robot_state_publisher and RViz read, in the robot's namespace
+        self._joint_states = self.create_publisher(
+            JointState, f"{self.composite.namespace.rstrip('/')}/{params['robot']}/joint_states", 10)
 
     def _within_limits(self, positions: np.ndarray) -> np.ndarray:
         return np.clip(positions, self.robot.lower, self.robot.upper)
@@ -80,6 +84,7 @@ class SimulatedRobot(FunctionalEntity):
                          velocity=self.velocity.tolist())
         msg.header.stamp = self.get_clock().now().to_msg()
         self.outputs['joint_state'].write(msg)
+        self._joint_states.publish(msg)
 
     def disengage(self) -> None:
         self.velocity = np.zeros(self.robot.nv)

@@ -1,0 +1,70 @@
+"""Seeing a run (issue #13): ``robot_description``, TF, markers and ``/diagnostics``.
+
+A tool concern, not part of the application: like the recorder and the status line it observes
+the composites through their topics, so it lives in itasc_bringup next to them, never in the
+Composition Pattern's packages (paper §3.1: an entity knows its own composite only). The
+bootstrap calls :func:`start_visualization` once the root composite is up: diagnostics on its own
+node (they read the Timer), robot_description, TF and markers in a process of their own
+(:mod:`.node`), off the control path.
+"""
+
+from __future__ import annotations
+
+import atexit
+import ctypes
+import signal
+import subprocess
+import sys
+
+import yaml
+
+__all__ = ['start_visualization', 'GLOBAL_TOPICS']
+
+#: Topics outside the application's namespace a recording must hold (type, QoS name).
+GLOBAL_TOPICS = {'/tf': 'tf2_msgs/msg/TFMessage', '/tf_static': 'tf2_msgs/msg/TFMessage',
+                 '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
+
+
+def _end_with_parent() -> None:
+    """In the child, before exec: SIGTERM when the bootstrap dies, however it dies (Linux)."""
+    ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
+def _is_application(path) -> bool:
+    with open(path, encoding='utf-8') as stream:
+        data = yaml.safe_load(stream)
+    return isinstance(data, dict) and 'application' in data
+
+
+def start_visualization(app: str, *, model, node, composer, recorder=None) -> None:
+    """Diagnostics of every composite of ``model`` on ``node``; for an iTaSC application, the
+    visualization process (ended when this process exits); ``recorder`` records the global
+    topics."""
+    from itasc_core.composition.model import walk
+
+    from ..apps import resolve_app
+    from .diagnostics import Diagnostics
+    from .node import LATCHED_QOS, TF_QOS
+
+    if recorder is not None:
+        for topic, type_name in GLOBAL_TOPICS.items():
+            recorder.record(topic, type_name, qos=LATCHED_QOS if topic == '/tf_static' else TF_QOS)
+    composites = {m.name: path for path, m in walk(model)}
+    solvers = [f'{path}/Solver/status' for path, m in walk(model) if any(e.name == 'Solver' for e in m.entities)]
+    Diagnostics(node, app=model.name, composites=composites, timer=lambda: composer.timer,
+                solver_topics=solvers)  # lives as long as the node's subscriptions and timer
+    path = resolve_app(app)
+    if not _is_application(path):
+        return  # a composition model of the pattern itself: no robots to show
+    process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve())],
+                               stdout=subprocess.DEVNULL, preexec_fn=_end_with_parent)
+
+    def end() -> None:
+        if process.poll() is None:
+            process.terminate()
+            try:
+                process.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+    atexit.register(end)

@@ -1,0 +1,107 @@
+"""Health on ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``), where rqt_robot_monitor and
+Foxglove's diagnostics panel look: one status per composite (paper §6.1: every composite's
+Coordinator has a life-cycle state), at 1 Hz and on every change of a level or message.
+
+Level and message come from the composite's life-cycle state: ``Safety`` is ERROR, Running OK,
+any other state (configuring, stopping, stopped) WARN. The values are the achieved rate and the
+tick time of the Timer (paper §6.2), the Solver's status and the last Safety reason (the detail of
+the newest ``e_emergency``, e.g. ``Driver_panda_silent: stale on value``).
+
+It lives in the bootstrap, next to the Timer it reads, as subscriptions and a 1 Hz timer on the
+bootstrap's node: none of it runs inside the tick.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Callable
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.node import Node
+
+from itasc_core.communication.qos import DATA_QOS, EVENT_QOS, STATE_QOS
+from itasc_msgs.msg import CoordinatorState, Event, SolverStatus
+
+__all__ = ['Diagnostics', 'level_of', 'DIAGNOSTICS_TOPIC']
+
+DIAGNOSTICS_TOPIC = '/diagnostics'
+
+
+def level_of(state: str) -> bytes:
+    """The diagnostic level of a life-cycle state."""
+    if state.startswith('Safety'):
+        return DiagnosticStatus.ERROR
+    if state.startswith('Active.Run.Running'):
+        return DiagnosticStatus.OK
+    return DiagnosticStatus.WARN
+
+
+class Diagnostics:
+    """Publishes one DiagnosticStatus per composite of ``composites`` (name -> namespace)."""
+
+    def __init__(self, node: Node, *, app: str, composites: dict[str, str], timer: Callable[[], object | None],
+                 solver_topics: list[str], period: float = 1.0) -> None:
+        self._node = node
+        self._app = app
+        self._timer = timer
+        self.namespaces = composites
+        self.states = {name: '-' for name in composites}
+        self.safety_reason = ''
+        self.solver_status = '-'
+        self._shown: dict[str, tuple[bytes, str]] = {}
+        self.publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DATA_QOS)
+        for namespace in composites.values():
+            node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
+            node.create_subscription(Event, f'{namespace}/events', self._on_event, EVENT_QOS)
+        for topic in solver_topics:
+            node.create_subscription(SolverStatus, topic, self._on_solver, DATA_QOS)
+        self._periodic = node.create_timer(period, self.publish)
+
+    def _on_state(self, msg: CoordinatorState) -> None:
+        if msg.composite in self.states:
+            self.states[msg.composite] = msg.state
+            self._publish_if_changed()
+
+    def _on_event(self, msg: Event) -> None:
+        if msg.name == 'e_emergency' and msg.detail:
+            self.safety_reason = msg.detail
+            self._publish_if_changed(force=any(s.startswith('Safety') for s in self.states.values()))
+
+    def _on_solver(self, msg: SolverStatus) -> None:
+        self.solver_status = msg.status
+
+    def _publish_if_changed(self, *, force: bool = False) -> None:
+        if force or any(self._shown.get(s.name) != (s.level, s.message) for s in self.statuses()):
+            self.publish()
+
+    def _timing(self) -> list[KeyValue]:
+        timer = self._timer()
+        durations = list(getattr(timer, 'durations', ()))[-1000:]
+        rate = timer.achieved_rate() if timer is not None else 0.0
+        tick = statistics.median(durations) * 1e3 if durations else float('nan')
+        worst = max(durations) * 1e3 if durations else float('nan')
+        return [KeyValue(key='achieved rate [Hz]', value=f'{rate:.1f}'),
+                KeyValue(key='tick time median [ms]', value=f'{tick:.3f}'),
+                KeyValue(key='tick time max [ms]', value=f'{worst:.3f}')]
+
+    def statuses(self) -> list[DiagnosticStatus]:
+        timing = self._timing()
+        out = []
+        for name, namespace in self.namespaces.items():
+            state = self.states[name]
+            level = level_of(state)
+            message = state if level != DiagnosticStatus.ERROR or not self.safety_reason \
+                else f'Safety: {self.safety_reason}'
+            out.append(DiagnosticStatus(
+                level=level, name=f'{self._app}: {namespace}', message=message, hardware_id=self._app,
+                values=[KeyValue(key='state', value=state), *timing,
+                        KeyValue(key='solver status', value=self.solver_status),
+                        KeyValue(key='last Safety reason', value=self.safety_reason)]))
+        return out
+
+    def publish(self) -> None:
+        statuses = self.statuses()
+        self._shown = {s.name: (s.level, s.message) for s in statuses}
+        array = DiagnosticArray(status=statuses)
+        array.header.stamp = self._node.get_clock().now().to_msg()
+        self.publisher.publish(array)

@@ -1,0 +1,199 @@
+"""The visualization process of a running application: ``robot_description``, TF and markers
+(see :mod:`.description`, :mod:`.frames`, :mod:`.markers`).
+
+It observes the application only through its topics, at a display rate (30 Hz), in a process of
+its own: nothing of it runs in, or competes for the interpreter with, the control tick (paper §6.2:
+the Timer's tick computes the Tasks, nothing else). It publishes
+
+* ``<app>/<robot>/robot_description`` (``std_msgs/String``, transient local), per robot;
+* ``/tf_static`` once (fixed joints, object frames, fixed placements) and ``/tf`` at the display
+  rate from each robot's newest Driver joint state, stamped with it (as robot_state_publisher);
+* ``<app>/markers`` (``visualization_msgs/MarkerArray``) at the display rate.
+
+    python -m itasc_bringup.visualization.node <app name or model path> [--rate 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+import pinocchio as pin
+import rclpy
+from geometry_msgs.msg import PoseStamped, TransformStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import MarkerArray
+
+from itasc_core.communication.qos import DATA_QOS, STATE_QOS
+from itasc_msgs.msg import CoordinatorState, TaskState
+
+from ..model.schema import Application
+from .description import robot_description
+from .frames import WORLD, Edge, FrameTree, quaternion_xyzw
+from .markers import TaskView, scene_markers
+
+__all__ = ['Visualizer', 'LATCHED_QOS', 'TF_QOS', 'DISPLAY_RATE', 'markers_topic', 'description_topic',
+           'joint_states_topic', 'main']
+
+DISPLAY_RATE = 30.0
+#: robot_description and /tf_static: latched, as robot_state_publisher offers them.
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: /tf as tf2_ros' TransformBroadcaster offers it.
+TF_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                    durability=DurabilityPolicy.VOLATILE)
+
+
+def markers_topic(namespace: str) -> str:
+    return f'{namespace}/markers'
+
+
+def description_topic(namespace: str, robot: str) -> str:
+    return f'{namespace}/{robot}/robot_description'
+
+
+def joint_states_topic(namespace: str, robot: str) -> str:
+    return f'{namespace}/{robot}/joint_states'
+
+
+def transform_msg(edge: Edge, stamp) -> TransformStamped:
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = edge.parent
+    msg.child_frame_id = edge.child
+    t = msg.transform
+    t.translation.x, t.translation.y, t.translation.z = map(float, edge.pose.translation)
+    t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w = quaternion_xyzw(edge.pose.rotation)
+    return msg
+
+
+def _se3(pose) -> pin.SE3:
+    q = pin.Quaternion(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z)
+    q.normalize()
+    return pin.SE3(q.toRotationMatrix(), np.array([pose.position.x, pose.position.y, pose.position.z]))
+
+
+class Visualizer(Node):
+    """Node ``visualization`` in the application's namespace."""
+
+    def __init__(self, app: Application, *, namespace: str, rate: float = DISPLAY_RATE) -> None:
+        super().__init__('visualization', namespace=namespace)
+        self.app = app
+        program = f'{namespace}/{app.program.name}'
+        descriptions = {r.name: robot_description(r) for r in app.program.robots}
+        self.tree = FrameTree.of(app, descriptions)
+        self._descriptions = []
+        for name, text in descriptions.items():
+            publisher = self.create_publisher(String, description_topic(namespace, name), LATCHED_QOS)
+            publisher.publish(String(data=text))
+            self._descriptions.append(publisher)
+        self._static = self.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
+        stamp = self.get_clock().now().to_msg()
+        self._static.publish(TFMessage(transforms=[transform_msg(e, stamp) for e in self.tree.static()]))
+        self._tf = self.create_publisher(TFMessage, '/tf', TF_QOS)
+        self._markers = self.create_publisher(MarkerArray, markers_topic(namespace), DATA_QOS)
+
+        self._joints: dict[str, JointState] = {}
+        self._shown: dict[str, object] = {}
+        for robot in app.program.robots:
+            self.create_subscription(JointState, f'{namespace}/Driver_{robot.name}/joint_state',
+                                     lambda msg, r=robot.name: self._joints.__setitem__(r, msg), DATA_QOS)
+        for sensor in app.sensors:
+            self.create_subscription(PoseStamped, f'{namespace}/Sensor_{sensor.object}/pose',
+                                     lambda msg, o=sensor.object: self._set_object(o, _se3(msg.pose)), DATA_QOS)
+        moving = {o.name for o in app.program.objects if o.motion}
+        self.views = {t.name: TaskView(t.name) for t in app.program.tasks}
+        for task in app.program.tasks:
+            self.create_subscription(CoordinatorState, f'{program}/{task.name}/state',
+                                     lambda msg, t=task.name: self._on_state(t, msg), STATE_QOS)
+            self.create_subscription(TaskState, f'{program}/{task.name}/Rows/state', self._on_task, DATA_QOS)
+            if task.type != 'joint' and task.o1.partition('/')[0] in moving:  # a moving target
+                self.create_subscription(Float64MultiArray, f'{program}/Scene/relation_{task.name}',
+                                         lambda msg, t=task: self._on_relation(t, msg), DATA_QOS)
+        self._task_seen: dict[str, float] = {}
+        self._timer = self.create_timer(1.0 / rate, self._display)
+
+    def _set_object(self, name: str, pose: pin.SE3) -> None:
+        self.tree.objects[name] = pose
+
+    def _on_state(self, task: str, msg: CoordinatorState) -> None:
+        self.views[task].running_state = msg.state.removeprefix('Active.Run.').removeprefix('Active.')
+
+    def _on_task(self, msg: TaskState) -> None:
+        view = self.views.get(msg.task)
+        if view is not None:
+            view.active, view.error_norm = bool(msg.active), float(msg.error_norm)
+            self._task_seen[msg.task] = self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_relation(self, task, msg: Float64MultiArray) -> None:
+        rows, columns = msg.layout.dim[0].size, msg.layout.dim[1].size
+        value = np.asarray(msg.data, dtype=float).reshape(rows, columns)[:6, 0]
+        relative = pin.SE3(pin.exp3(value[3:6]), value[:3])
+        pose = self.tree.object_pose_from(task.o1, task.o2, relative)
+        if pose is not None:
+            self._set_object(task.o1.partition('/')[0], pose)
+
+    def _display(self) -> None:
+        now = self.get_clock().now().nanoseconds * 1e-9
+        for task, seen in self._task_seen.items():  # a Task that stopped reporting is off
+            if now - seen > 0.5:
+                self.views[task].active = False
+        transforms, stamp = [], None
+        for name, msg in self._joints.items():
+            stamp = msg.header.stamp
+            if self._shown.get(name) is msg:
+                continue
+            self._shown[name] = msg
+            edges = self.tree.robots[name].moving(msg.name, msg.position)
+            transforms += [transform_msg(e, msg.header.stamp) for e in edges]
+        if stamp is None:
+            return  # nothing to draw before the first joint state
+        moving = [Edge(WORLD, o.name, self.tree.objects[o.name]) for o in self.app.program.objects
+                  if (o.motion or o.name in {s.object for s in self.app.sensors})
+                  and self.tree.objects[o.name] is not None]
+        transforms += [transform_msg(e, stamp) for e in moving]
+        if transforms:
+            self._tf.publish(TFMessage(transforms=transforms))
+        self._markers.publish(scene_markers(self.app, self.tree, self.views, stamp))
+
+
+def main(argv: list[str] | None = None) -> int:
+    from itasc_core.communication.dds import configure_dds
+    from itasc_core.composition.loader import ModelError
+
+    from ..apps import resolve_app
+    from ..model import load_application
+
+    parser = argparse.ArgumentParser(prog='visualization', description='robot_description, TF and markers '
+                                     'of a running iTaSC application.')
+    parser.add_argument('app', help='application name or model path')
+    parser.add_argument('--rate', type=float, default=DISPLAY_RATE, help='display rate (Hz)')
+    args = parser.parse_args(argv)
+    try:
+        app = load_application(resolve_app(args.app))
+    except ModelError as err:
+        print(f'error: {err}', file=sys.stderr)
+        return 2
+    configure_dds()
+    rclpy.init()
+    node = None
+    try:
+        node = Visualizer(app, namespace=f'/{app.name}', rate=args.rate)
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,169 @@
+"""Seeing a run (issue #13), from its recording alone, read with rosbags (no ROS install needed):
+robot_description, TF that agrees with Pinocchio's forward kinematics, markers that agree with the
+Scene, /diagnostics, and types that are exactly Jazzy's."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from rosbags.highlevel import AnyReader
+
+from itasc_bringup.apps import resolve_app
+from itasc_bringup.model import load_application
+
+BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+APP = 'approach_object'
+TOOL = 'panda/panda_hand_tcp'
+
+
+@pytest.fixture(scope='module')
+def recording(tmp_path_factory) -> Path:
+    mcap = tmp_path_factory.mktemp('see') / 'run.mcap'
+    result = subprocess.run([*BOOTSTRAP, APP, '--duration', '10', '--record', str(mcap)],
+                            capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return mcap
+
+
+@pytest.fixture(scope='module')
+def messages(recording) -> dict[str, list]:
+    """topic -> [(log time ns, message)], in order."""
+    out: dict[str, list] = defaultdict(list)
+    with AnyReader([recording]) as reader:
+        for connection, stamp, raw in reader.messages():
+            out[connection.topic].append((stamp, reader.deserialize(raw, connection.msgtype)))
+    return out
+
+
+def _se3(transform) -> pin.SE3:
+    r, t = transform.rotation, transform.translation
+    return pin.SE3(pin.Quaternion(r.w, r.x, r.y, r.z).toRotationMatrix(), np.array([t.x, t.y, t.z]))
+
+
+def _key(stamp) -> tuple[int, int]:
+    return stamp.sec, stamp.nanosec
+
+
+def _compose(frame: str, edges: dict[str, tuple[str, pin.SE3]]) -> pin.SE3:
+    """world -> frame through the parents of ``edges`` (child -> (parent, pose in parent))."""
+    pose = pin.SE3.Identity()
+    while frame != 'world':
+        parent, edge = edges[frame]
+        pose, frame = edge * pose, parent
+    return pose
+
+
+def _static(messages) -> dict[str, tuple[str, pin.SE3]]:
+    return {t.child_frame_id: (t.header.frame_id, _se3(t.transform))
+            for _, msg in messages['/tf_static'] for t in msg.transforms}
+
+
+def test_tf_from_the_recording_is_the_forward_kinematics_of_the_recorded_joint_state(messages):
+    description = messages[f'/{APP}/panda/robot_description'][-1][1].data
+    model = pin.buildModelFromXML(description)
+    data = model.createData()
+    joint_states = {_key(m.header.stamp): m for _, m in messages[f'/{APP}/panda/joint_states']}
+    static = _static(messages)
+    assert static['panda/panda_link0'][0] == 'world'
+    assert static['panda/panda_link0'][1].isApprox(pin.SE3.Identity(), 1e-12)  # the model places it at the origin
+    checked = 0
+    for _, tf in messages['/tf']:
+        stamps = {_key(t.header.stamp) for t in tf.transforms}
+        assert len(stamps) == 1
+        joints = joint_states[stamps.pop()]  # stamped with the joint state it was computed from
+        edges = dict(static) | {t.child_frame_id: (t.header.frame_id, _se3(t.transform)) for t in tf.transforms}
+        q = pin.neutral(model)
+        for name, position in zip(joints.name, joints.position):
+            q[model.joints[model.getJointId(name)].idx_q] = position
+        pin.framesForwardKinematics(model, data, q)
+        expected = data.oMf[model.getFrameId(TOOL.split('/')[1])]
+        got = _compose(TOOL, edges)
+        assert np.abs(got.homogeneous - expected.homogeneous).max() < 1e-9
+        checked += 1
+    assert checked >= 100, checked
+    # the tool moved during the run: the comparison was not made on one pose
+    first, last = messages[f'/{APP}/panda/joint_states'][0][1], messages[f'/{APP}/panda/joint_states'][-1][1]
+    assert np.abs(np.subtract(first.position, last.position)).max() > 0.1
+
+
+def test_markers_agree_with_the_scene(messages):
+    app = load_application(resolve_app(APP))
+    obstacle = next(o for o in app.program.objects if o.name == 'obstacle')
+    static = _static(messages)
+    dynamic: dict[tuple[int, int], set[str]] = defaultdict(set)
+    for _, tf in messages['/tf']:
+        for t in tf.transforms:
+            dynamic[_key(t.header.stamp)].add(t.child_frame_id)
+    distances = [(stamp, m.output[0]) for stamp, m in messages[f'/{APP}/itasc/AvoidObstacle/Rows/state']]
+    joint_log = {_key(m.header.stamp): stamp for stamp, m in messages[f'/{APP}/panda/joint_states']}
+    arrays = messages[f'/{APP}/markers']
+    assert len(arrays) > 100
+    lines = 0
+    for _, array in arrays:
+        for marker in array.markers:
+            frame, stamp = marker.header.frame_id, _key(marker.header.stamp)
+            assert frame == 'world' or frame in static or frame in dynamic[stamp], (marker.ns, frame)
+            if marker.ns == 'obstacles':
+                assert marker.header.frame_id == 'obstacle'
+                assert (marker.scale.x, marker.scale.y, marker.scale.z) == (obstacle.size,) * 3
+            if marker.ns == 'distance' and marker.text != 'inactive':
+                p1, p2 = (np.array([p.x, p.y, p.z]) for p in marker.points)
+                length = np.linalg.norm(p2 - p1)
+                # the AvoidObstacle Task computed its distance from this same joint state at one of
+                # the next ticks (unless it stopped computing meanwhile: the end of the run)
+                after = [d for t, d in distances if 0 <= t - joint_log[stamp] < 50_000_000]
+                if len(after) >= 3:
+                    assert min(abs(d - length) for d in after) < 1e-9, (length, after)
+                    lines += 1
+    assert lines > 100
+    kinds = {m.ns for _, a in arrays for m in a.markers}
+    assert {'frames', 'targets', 'obstacles', 'distance', 'd_min', 'tasks'} <= kinds
+    texts = [m.text for m in arrays[-1][1].markers if m.ns == 'tasks']
+    assert any(t.startswith('ApproachObject: ') and 'error' in t for t in texts), texts
+
+
+def test_every_composite_has_a_status_on_diagnostics(messages):
+    arrays = [m for _, m in messages['/diagnostics']]
+    names = {s.name for a in arrays for s in a.status}
+    assert names == {f'{APP}: /{APP}', f'{APP}: /{APP}/itasc', *(f'{APP}: /{APP}/itasc/{t}' for t in
+                                                                  ('ApproachObject', 'AvoidObstacle', 'Retreat'))}
+    running = [a for a in arrays if all(s.message.startswith('Active.Run.Running') for s in a.status)]
+    assert running and all(s.level == 0 for s in running[-1].status)  # OK
+    values = {v.key: v.value for v in running[-1].status[0].values}
+    # the Timer's achieved rate: what the Driver's joint states show, over the same run
+    ticks = [t for t, _ in messages[f'/{APP}/Driver_panda/joint_state']]
+    recorded_rate = (len(ticks) - 1) / ((ticks[-1] - ticks[0]) * 1e-9)
+    assert abs(float(values['achieved rate [Hz]']) - recorded_rate) < 0.15 * recorded_rate, recorded_rate
+    assert 0.0 < float(values['tick time median [ms]']) < 10.0
+    assert values['solver status'] in ('ok', 'singular', 'saturated')
+
+
+def test_the_types_in_the_recording_are_jazzys(recording):
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    wanted = {'tf2_msgs/msg/TFMessage', 'visualization_msgs/msg/MarkerArray',
+              'diagnostic_msgs/msg/DiagnosticArray', 'std_msgs/msg/String'}
+    with open(recording, 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+    seen = set()
+    for channel in summary.channels.values():
+        schema = summary.schemas[channel.schema_id]
+        if schema.name not in wanted:
+            continue
+        assert channel.metadata['topic_type_hash'] == jazzy.hash_rihs01(schema.name), channel.topic
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(schema.data.decode(), schema.name))
+        assert store.hash_rihs01(schema.name) == jazzy.hash_rihs01(schema.name)
+        for name in store.fielddefs:
+            if name in jazzy.fielddefs:
+                assert store.fielddefs[name] == jazzy.fielddefs[name], name
+        seen.add(schema.name)
+    assert seen == wanted
