@@ -167,3 +167,52 @@ def test_the_types_in_the_recording_are_jazzys(recording):
                 assert store.fielddefs[name] == jazzy.fielddefs[name], name
         seen.add(schema.name)
     assert seen == wanted
+
+
+def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_falling_silent():
+    import time
+
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from processes import Spawned
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    app = 'approach_object_ros_driver'
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('diagnostics_probe', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    received: list[tuple[float, DiagnosticArray]] = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: received.append((time.monotonic(), m)), 10)
+
+    def spin_until(condition, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not condition():
+            executor.spin_once(timeout_sec=0.02)
+        return condition()
+
+    def root_running() -> bool:
+        return any(s.name == f'{app}: /{app}' and s.level == s.OK and s.message.startswith('Active.Run.Running')
+                   for _, m in received[-1:] for s in m.status)
+    try:
+        with (Spawned([sys.executable, '-m', 'itasc_drivers.fake_ros2_control']) as driver,
+              Spawned([*BOOTSTRAP, app, '--duration', '4']) as run):
+            assert spin_until(root_running, 120), run.output()
+            assert {s.name for s in received[-1][1].status} == {
+                f'{app}: /{app}', f'{app}: /{app}/itasc',
+                *(f'{app}: /{app}/itasc/{t}' for t in ('ApproachObject', 'AvoidObstacle', 'Retreat'))}
+            driver.kill()  # the robot's driver falls silent
+            silent_at = time.monotonic()
+
+            def safety():
+                return next((t for t, m in received for s in m.status if t > silent_at and s.level == s.ERROR
+                             and s.name == f'{app}: /{app}' and 'Driver_panda_silent' in s.message), None)
+            assert spin_until(lambda: safety() is not None, 5.0), [s.message for s in received[-1][1].status]
+            assert safety() - silent_at < 1.0
+            assert run.finish(timeout=120) in (0, 3), run.output()
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
