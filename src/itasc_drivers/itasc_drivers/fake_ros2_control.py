@@ -1,9 +1,16 @@
 """A stand-in for an existing ROS 2 driver that speaks only standard messages, as ros2_control's
-joint_state_broadcaster and a JointGroupVelocityController (or JointGroupPositionController) do:
-it publishes ``sensor_msgs/JointState`` on ``joint_states`` — joints in a different order than the
-controller's, plus one joint nobody controls (a gripper finger) — and integrates the
-``std_msgs/Float64MultiArray`` it receives on ``/<controller>/commands`` (velocities, or
-positions with ``--interface position``), in the controller's joint order.
+joint_state_broadcaster and a JointGroupVelocityController (or JointGroupPositionController, or
+JointTrajectoryController) do: it publishes ``sensor_msgs/JointState`` on ``joint_states`` — joints
+in a different order than the controller's, plus one joint nobody controls (a gripper finger) — and
+follows what it receives:
+
+* ``--interface velocity``: ``std_msgs/Float64MultiArray`` on ``/<controller>/commands``,
+  velocities in the controller's joint order, integrated;
+* ``--interface position``: the same with positions, taken at once;
+* ``--interface trajectory``: ``trajectory_msgs/JointTrajectory`` on
+  ``/<controller>/joint_trajectory``, joints by name (a subset is allowed, unknown joints reject
+  the whole message, as the JointTrajectoryController does); it moves at constant velocity to the
+  first point, reaching it ``time_from_start`` after receipt, and stays there.
 
 Used to test the Ros2ControlAdapter Driver (paper §4.2: the same program on other hardware by
 swapping the Driver). Run: ``fake_ros2_control [--controller velocity_controller] [--rate 200]``.
@@ -19,6 +26,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
 
 from itasc_core.communication.dds import configure_dds
 
@@ -41,7 +49,11 @@ class FakeRos2Control(Node):
         self.interface = interface
         self.commands_received = 0
         self._publisher = self.create_publisher(JointState, joint_states, 10)
-        self.create_subscription(Float64MultiArray, f'/{controller}/commands', self._on_command, 10)
+        if interface == 'trajectory':
+            self.create_subscription(JointTrajectory, f'/{controller}/joint_trajectory', self._on_trajectory, 10)
+        else:
+            self.create_subscription(Float64MultiArray, f'/{controller}/commands', self._on_command, 10)
+        self._arrival: float | None = None  # trajectory: when the point is reached
         self._last = time.monotonic()
         self.create_timer(1.0 / rate, self._step)
 
@@ -55,12 +67,31 @@ class FakeRos2Control(Node):
         else:
             self.positions = dict(zip(self.joints, msg.data))
 
+    def _on_trajectory(self, msg: JointTrajectory) -> None:
+        unknown = sorted(set(msg.joint_names) - set(self.joints))
+        if unknown or not msg.points or len(msg.points[0].positions) != len(msg.joint_names):
+            self.get_logger().error(f'trajectory for joints {list(msg.joint_names)} rejected (unknown: {unknown})')
+            return
+        self.commands_received += 1
+        point = msg.points[0]
+        duration = max(point.time_from_start.sec + 1e-9 * point.time_from_start.nanosec, 1e-3)
+        self.velocities = dict.fromkeys(self.joints, 0.0)
+        for joint, target in zip(msg.joint_names, point.positions):
+            self.velocities[joint] = (target - self.positions[joint]) / duration
+        self._arrival = time.monotonic() + duration
+
     def _step(self) -> None:
         now = time.monotonic()
         dt, self._last = now - self._last, now
-        if self.interface == 'velocity':
+        if self.interface == 'trajectory' and self._arrival is not None:
+            dt = min(dt, max(self._arrival - (now - dt), 0.0))
+            if now >= self._arrival:
+                self._arrival = None
+        if self.interface in ('velocity', 'trajectory'):
             for joint, velocity in self.velocities.items():
                 self.positions[joint] += velocity * dt
+            if self.interface == 'trajectory' and self._arrival is None:
+                self.velocities = dict.fromkeys(self.joints, 0.0)
         order = list(reversed(self.joints))  # not the controller's order
         msg = JointState(name=order + [self.extra_joint],
                          position=[self.positions[j] for j in order] + [0.04],
@@ -75,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--initial', default=','.join(map(str, PANDA_READY)))
     parser.add_argument('--extra-joint', default='panda_finger_joint1')
     parser.add_argument('--controller', default='velocity_controller')
-    parser.add_argument('--interface', default='velocity', choices=('velocity', 'position'))
+    parser.add_argument('--interface', default='velocity', choices=('velocity', 'position', 'trajectory'))
     parser.add_argument('--rate', type=float, default=200.0)
     parser.add_argument('--joint-states', default='/joint_states')
     args = parser.parse_args(argv)
