@@ -44,6 +44,7 @@ setup(
             'bootstrap = itasc_bringup.bootstrap:main',
             'itasc-plot = itasc_bringup.plot:main',
             'itasc-graph = itasc_bringup.graph:main',
+            'itasc-replay = itasc_bringup.replay:main',
         ],
     },
 )
