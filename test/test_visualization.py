@@ -216,3 +216,40 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
         executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_the_scene_pictures_show_the_tool_where_forward_kinematics_puts_it(recording, messages, tmp_path):
+    from PIL import Image
+
+    from itasc_bringup.plot import main as itasc_plot
+    from itasc_bringup.visualization.picture import render_scene
+
+    assert itasc_plot([str(recording), '--out', str(tmp_path / 'plots')]) == 0
+    assert (tmp_path / 'plots' / 'scene_end.png').is_file()
+    gif = Image.open(tmp_path / 'plots' / 'scene.gif')
+    assert gif.n_frames > 20
+
+    drawn = render_scene(recording, tmp_path / 'scene', gif=False)
+    names = [d.path.name for d in drawn]
+    assert names[0] == 'scene_0_approach.png' and names[-1] == 'scene_end.png'
+    assert any('hold' in n for n in names) and any('retreat' in n for n in names), names
+    description = messages[f'/{APP}/panda/robot_description'][-1][1].data
+    model = pin.buildModelFromXML(description)
+    data = model.createData()
+    joint_states = {_key(m.header.stamp): m for _, m in messages[f'/{APP}/panda/joint_states']}
+    images = []
+    for d in drawn:
+        joints = joint_states[d.stamp]
+        q = pin.neutral(model)
+        for name, position in zip(joints.name, joints.position):
+            q[model.joints[model.getJointId(name)].idx_q] = position
+        pin.framesForwardKinematics(model, data, q)
+        assert np.abs(d.tool - data.oMf[model.getFrameId(TOOL.split('/')[1])].translation).max() < 1e-9
+        image = np.asarray(Image.open(d.path).convert('RGB')).astype(int)
+        x, y = round(d.tool_pixel[0]), round(d.tool_pixel[1])
+        patch = image[y - 2:y + 3, x - 2:x + 3].reshape(-1, 3)
+        # the tool's blue dot is drawn where the projection of its forward kinematics falls
+        assert any(b > 180 and r < 90 and g < 90 for r, g, b in patch), patch
+        images.append(image)
+    for a, b in zip(images, images[1:]):
+        assert np.abs(a - b).sum() > 1000  # each transition shows a different scene

@@ -15,7 +15,11 @@ Writes into ``DIR`` (default ``<stem>_plots/`` next to the file):
   drawn (a recording does not carry the robot model);
 * ``lifecycle.png`` - one lane per composite (``itasc_msgs/msg/CoordinatorState``): a segment per
   state, coloured by its top-level state (Configure/Start/Run/Stop/Safety), labelled with the leaf
-  state where it fits, and a tick per transition named by the event that caused it.
+  state where it fits, and a tick per transition named by the event that caused it;
+* ``scene_<n>_<state>.png``, ``scene_end.png``, ``scene.gif`` - the 3-D scene (robot links, object
+  frames, targets, obstacles, distance constraints with ``d_min``) at each transition of the
+  Running sub-FSM, at the end, and animated, when the run recorded TF and markers
+  (:mod:`itasc_bringup.visualization.picture`).
 
 Time is the recording's receive time, in seconds from the first message.
 """
@@ -257,6 +261,9 @@ def plot_run(path: pathlib.Path, out: pathlib.Path,
     written += [plot_joints(topic, items, limits, out)
                 for topic, items in sorted(series.items()) if types[topic] == JOINT_STATE]
     written.append(plot_lifecycle(series, types, duration, out))
+    from .visualization.picture import render_scene  # the 3-D scene, when the run recorded TF and markers
+    scene = render_scene(path, out)
+    written += [d.path for d in scene] + ([out / 'scene.gif'] if scene else [])
     return [p for p in written if p is not None]
 
 
