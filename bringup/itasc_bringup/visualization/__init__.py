@@ -15,6 +15,7 @@ import ctypes
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 
 import yaml
 
@@ -36,10 +37,10 @@ def _is_application(path) -> bool:
     return isinstance(data, dict) and 'application' in data
 
 
-def start_visualization(app: str, *, model, node, composer, recorder=None) -> None:
+def start_visualization(app: str, *, model, node, composer, recorder=None) -> Callable[[], None]:
     """Diagnostics of every composite of ``model`` on ``node``; for an iTaSC application, the
-    visualization process (ended when this process exits); ``recorder`` records the global
-    topics."""
+    visualization process; ``recorder`` records the global topics. Returns what ends the process
+    (also called when this process exits)."""
     from itasc_core.composition.model import walk
 
     from ..apps import resolve_app
@@ -55,7 +56,7 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> No
                 solver_topics=solvers)  # lives as long as the node's subscriptions and timer
     path = resolve_app(app)
     if not _is_application(path):
-        return  # a composition model of the pattern itself: no robots to show
+        return lambda: None  # a composition model of the pattern itself: no robots to show
     process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve())],
                                stdout=subprocess.DEVNULL, preexec_fn=_end_with_parent)
 
@@ -68,3 +69,4 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> No
                 process.kill()
                 process.wait()
     atexit.register(end)
+    return end
