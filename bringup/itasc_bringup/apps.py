@@ -4,20 +4,23 @@ An application is named (``approach_object`` -> ``config/apps/approach_object.ya
 share directory of itasc_bringup, or the repository's ``config/`` when running from source) or
 given by path. The file decides what it is: an iTaSC application model (top-level key
 ``application``) is validated, checked and transformed into the composition model; a model of the
-Composition Pattern itself (top-level key ``composite``) is loaded as it is.
+Composition Pattern itself (top-level key ``composite``) is validated and checked (registered
+entity kinds, existing ports that agree on their metadata). Either way, a wrong model is a
+``ModelError`` before anything starts.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
 from pydantic import ValidationError
-from itasc_core.composition.loader import ModelError, load_model
+from itasc_core.composition.checks import check_composite
+from itasc_core.composition.loader import ModelError, load_yaml_tree, validate_tree
 from itasc_core.composition.model import CompositeModel
 
-from .model import load_application, to_composition
-from .model.locations import config_dirs
+from .model import to_composition
+from .model.load import KEY, application_of
+from .model.locations import config_dirs, include_roots
 
 __all__ = ['resolve_app', 'load_composition', 'check_model', 'known_apps']
 
@@ -38,31 +41,26 @@ def resolve_app(app: str) -> Path:
     raise ModelError(app, '', f'no application named {app!r}; known: {known_apps()}')
 
 
-def _kind(path: Path) -> str:
-    try:
-        with path.open() as stream:
-            for event in yaml.parse(stream):  # the first key of the top-level mapping is enough
-                if isinstance(event, yaml.ScalarEvent):
-                    return event.value
-    except OSError as err:
-        raise ModelError(str(path), '', f'cannot be read: {err.strerror}') from None
-    except yaml.YAMLError:
-        return 'application'  # the loader reports the syntax error with its position
-    return ''
-
-
 def load_composition(app: str) -> CompositeModel:
-    """The composition model of application ``app``; raises :class:`ModelError` if it is wrong."""
+    """The composition model of application ``app``; raises :class:`ModelError` if it is wrong.
+
+    Nothing of the model is run: it is read within the bounds of ``itasc_core.composition.loader``,
+    validated, checked, and (an iTaSC application) transformed."""
     path = resolve_app(app)
-    kind = _kind(path)
-    if kind == 'application':
-        app_model = load_application(path)
-        try:
-            return to_composition(app_model)
-        except ValidationError as err:  # a check is missing: still no traceback, and nothing started
-            raise ModelError(str(path), '', f'cannot be composed: {err.errors()[0]["msg"]}') from None
-    if kind == 'composite':
-        return load_model(CompositeModel, path, key='composite')
+    try:
+        data, sources = load_yaml_tree(path, roots=include_roots(path))
+        if isinstance(data, dict) and KEY in data:
+            app_model = application_of(data, sources, path=path)
+            try:
+                return to_composition(app_model)
+            except ValidationError as err:  # a check is missing: still no traceback, and nothing started
+                raise ModelError(str(path), '', f'cannot be composed: {err.errors()[0]["msg"]}') from None
+        if isinstance(data, dict) and 'composite' in data:
+            model = validate_tree(CompositeModel, data, sources, path=path, key='composite')
+            check_composite(model, sources, at=('composite',))
+            return model
+    except (RecursionError, MemoryError, UnicodeError) as err:  # bounds missed: still no traceback
+        raise ModelError(str(path), '', f'cannot be loaded: {type(err).__name__}') from None
     raise ModelError(str(path), '', "expected a top-level 'application' (iTaSC application model) or "
                      "'composite' (composition model)")
 

@@ -1,10 +1,11 @@
 """Functional Entity kinds for the runtime tests: they record when the Scheduler runs them and
-can raise events on request."""
+can raise events on request. Importing this module registers them (kind ``test_support_probes:OrderProbe``)."""
 
 from __future__ import annotations
 
 from typing import Any
 
+from itasc_core.composition.registry import register_kind
 from itasc_core.computation.functional_entity import FunctionalEntity
 
 #: (tick time, entity fully qualified name), appended by every OrderProbe.update.
@@ -29,3 +30,6 @@ class OrderProbe(FunctionalEntity):
         CALLS.append((t, self.get_fully_qualified_name()))
         if self.raise_name and self.ticks == self.at_tick:
             self.raise_event(self.raise_name, priority=True, detail='raised by test probe')
+
+
+register_kind('test_support_probes:OrderProbe', OrderProbe)

@@ -20,7 +20,8 @@ def write(tmp_path, name: str, text: str):
 
 
 def test_pattern_demo_loads_with_includes(repo_root):
-    model = load_model(CompositeModel, repo_root / 'config/apps/pattern_demo.yaml', key='composite')
+    model = load_model(CompositeModel, repo_root / 'config/apps/pattern_demo.yaml', key='composite',
+                       roots=(repo_root / 'config',))
     assert [c.name for c in model.children] == ['program']
     assert [c.name for c in model.children[0].children] == ['track', 'hold']
 

@@ -18,13 +18,14 @@ from pathlib import Path
 from typing import Any
 
 import pinocchio as pin
-from itasc_core.composition.loader import ModelError, format_loc, source_of
+from itasc_core.composition.loader import MAX_BYTES, ModelError, format_loc, source_of
 from itasc_core.itasc.robot import Robot as RobotModel
 
 from .locations import config_dirs
 from .schema import Application, Program
 
-__all__ = ['check', 'load_robot', 'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED']
+__all__ = ['check', 'load_robot', 'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED', 'VECTORS',
+           'MAX_URDF_BYTES']
 
 Loc = tuple[Any, ...]
 
@@ -32,8 +33,12 @@ SOLVER_EVENTS = ('e_solver_ok', 'e_solver_singular', 'e_solver_infeasible', 'e_s
 #: What a Monitor may watch of a Task (TaskState fields, and the setpoint's progress) and of the Solver.
 TASK_QUANTITIES = ('output', 'setpoint', 'error', 'error_norm', 'progress')
 SOLVER_QUANTITIES = ('solve_time', 'min_singular_value', 'damping')
+#: The Task quantities that have one value per output (the others are one number).
+VECTORS = ('output', 'setpoint', 'error')
 #: Entity names of the Constraint-based program composite that Tasks and Monitors may not take.
 RESERVED = ('Scene', 'Solver')
+#: The largest URDF read (the shipped ones are about 6 kB).
+MAX_URDF_BYTES = 16 * MAX_BYTES
 
 
 @lru_cache(maxsize=32)
@@ -55,6 +60,17 @@ class _Where:
 
     def file(self, loc: Loc) -> Path:
         return source_of(self.root + loc, self.sources)[0]
+
+    def include_site(self, loc: Loc) -> Loc | None:
+        """Where the include that brought ``loc`` in stands (None: in the model file itself)."""
+        full = self.root + loc
+        site = max((p for p in self.sources if full[:len(p)] == p), key=len)
+        return site[len(self.root):] if len(site) > len(self.root) else None
+
+    def included_error(self, site: Loc, message: str) -> ModelError:
+        """An error at the include at ``site``, named in the file that includes it."""
+        path, inner = source_of(self.root + site[:-1], self.sources)
+        return ModelError(str(path), format_loc(inner + (site[-1], 'include')), message)
 
 
 def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('application',)) -> Application:
@@ -86,13 +102,18 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
 
 
 def _unique(where: _Where, locs: list[Loc], names: list[str], what: str, *, reserved: Iterable[str] = ()) -> None:
-    seen: set[str] = set()
+    seen: dict[str, Loc] = {}
     for loc, name in zip(locs, names):
         if name in seen:
+            first, second = where.include_site(seen[name]), where.include_site(loc)
+            if first is not None and second is not None and first != second \
+                    and where.file(seen[name]) == where.file(loc):  # one file, included twice
+                raise where.included_error(second, f"duplicate {what} '{name}': '{where.file(loc)}' is included "
+                                           f'twice (first at {format_loc(first)})')
             raise where.error(loc, f"duplicate {what} '{name}'")
         if name in reserved:
             raise where.error(loc, f"'{name}' is reserved: choose another {what}")
-        seen.add(name)
+        seen[name] = loc
 
 
 # -- robots and objects -------------------------------------------------------------------------------
@@ -101,7 +122,7 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
     urdf = _find_urdf(where.file(loc + ('urdf',)).parent, robot.urdf)
     if urdf is None:
         raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' not found (relative to this file, "
-                          'or under config/robots)')
+                          f'or under config/robots; a regular file of at most {MAX_URDF_BYTES} bytes)')
     try:
         model = load_robot(robot.name, str(urdf), robot.base)
     except (ValueError, RuntimeError) as err:
@@ -123,8 +144,9 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
 
 
 def _find_urdf(directory: Path, reference: str) -> Path | None:
+    """The URDF file ``reference`` names: a regular file (not a device or pipe) of sane size."""
     candidates = [directory / reference] + [d / 'robots' / reference for d in config_dirs()]
-    return next((c.resolve() for c in candidates if c.is_file()), None)
+    return next((c.resolve() for c in candidates if c.is_file() and c.stat().st_size <= MAX_URDF_BYTES), None)
 
 
 def _objects(where: _Where, program: Program) -> None:
@@ -187,6 +209,18 @@ def _monitors(where: _Where, program: Program) -> None:
             raise where.error(loc, f"a task has no '{quantity}'; expected one of {list(TASK_QUANTITIES)}")
         elif quantity == 'progress' and tasks[target].constraint == 'inequality':
             raise where.error(loc, f"inequality task '{target}' has no setpoint, hence no progress")
+        _index(where, loc, monitor.watch, tasks[target].selected if quantity in VECTORS and target in tasks else None)
+
+
+def _index(where: _Where, loc: Loc, watch: str, values: tuple[str, ...] | None) -> None:
+    """``<quantity>[i]`` names one of the values of a vector quantity."""
+    if '[' not in watch:
+        return
+    index = int(watch[watch.index('[') + 1:-1])
+    if values is None:
+        raise where.error(loc, f"'{watch}': '{watch.split('[')[0]}' is one number and takes no index")
+    if index >= len(values):
+        raise where.error(loc, f"'{watch}': index {index} is out of range: {len(values)} values {list(values)}")
 
 
 def _configurations(where: _Where, program: Program) -> None:

@@ -4,13 +4,15 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
-from itasc_core.composition.loader import ModelError, load_yaml_tree, validate
+from itasc_core.composition.loader import load_yaml_tree, validate_tree
 
 from .checks import check
+from .locations import include_roots
 from .schema import Application
 
-__all__ = ['load_application', 'KEY']
+__all__ = ['load_application', 'application_of', 'KEY']
 
 #: The top-level key of an iTaSC application model file.
 KEY = 'application'
@@ -18,11 +20,11 @@ KEY = 'application'
 
 def load_application(path: str | Path) -> Application:
     """The validated, checked application of the model file ``path`` (URDF paths resolved)."""
-    data, sources = load_yaml_tree(path)
-    if not isinstance(data, dict) or KEY not in data:
-        raise ModelError(str(path), KEY, 'required top-level field is missing')
-    extra = sorted(set(data) - {KEY})
-    if extra:
-        raise ModelError(str(path), str(extra[0]), 'unknown top-level field (not part of the model)')
-    app = validate(Application, data[KEY], sources, at=(KEY,))
+    data, sources = load_yaml_tree(path, roots=include_roots(path))
+    return application_of(data, sources, path=path)
+
+
+def application_of(data: Any, sources: dict, *, path: str | Path) -> Application:
+    """The validated, checked application of a loaded model tree (see ``load_yaml_tree``)."""
+    app = validate_tree(Application, data, sources, path=path, key=KEY)
     return check(app, sources, root=(KEY,))

@@ -1,11 +1,12 @@
 """Where application models and robot descriptions live: ``config/`` in the share directory of
-itasc_bringup (installed), else the repository's ``config/`` (running from source)."""
+itasc_bringup (installed), else the repository's ``config/`` (running from source); and which
+folders a model's includes may reach."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ['config_dirs']
+__all__ = ['config_dirs', 'include_roots']
 
 _REPO_CONFIG = Path(__file__).resolve().parents[3] / 'config'
 
@@ -21,3 +22,12 @@ def config_dirs() -> list[Path]:
     if _REPO_CONFIG.is_dir():
         dirs.append(_REPO_CONFIG)
     return dirs
+
+
+def include_roots(model: str | Path) -> tuple[Path, ...]:
+    """The folders whose files the includes of model file ``model`` may reach: the folder tree of
+    the model, the whole config folder when the model lies in one laid out as ours
+    (``<config>/apps/<model>.yaml``), and the shipped config folders."""
+    folder = Path(model).resolve().parent
+    own = folder.parent if folder.name == 'apps' else folder
+    return (own, *config_dirs())

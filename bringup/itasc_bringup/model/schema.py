@@ -19,7 +19,7 @@ import math
 import re
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 __all__ = ['Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task', 'Controller',
            'Setpoint', 'Placement', 'Driver', 'Sensor', 'Solver', 'Monitor', 'ControllerSettings', 'Settings',
@@ -183,6 +183,20 @@ class Task(_Model):
     def _positive(cls, value: list[float]) -> list[float]:
         if not value or any(w <= 0 for w in value):
             raise ValueError('weights must be > 0')
+        return value
+
+    @field_validator('d_min', 'd_max')
+    @classmethod
+    def _bounds(cls, value: list[float] | None, info: ValidationInfo) -> list[float] | None:
+        if value is None:
+            return value
+        if info.data.get('type') == 'distance' and any(v < 0 for v in value):
+            raise ValueError(f'a distance is never negative: {info.field_name} must be >= 0 (got {value})')
+        low = info.data.get('d_min') if info.field_name == 'd_max' else None
+        n = max(len(value), len(low or ()))
+        if low is not None and not all(lo < hi for lo, hi in zip(low * n if len(low) == 1 else low,
+                                                                  value * n if len(value) == 1 else value)):
+            raise ValueError(f'd_max {value} must be above d_min {low}')
         return value
 
     @property

@@ -1,0 +1,94 @@
+"""Checks of a composition model before anything starts (paper §3.3, §4.3): what the Composers
+would otherwise find only at run time, each a :class:`ModelError` naming the file, the path inside
+it and the value.
+
+Every leaf entity's kind is registered and takes the parameters it is given, of the types of its
+defaults; every exported port, connection end and watched port exists (port metadata from the
+model alone, :mod:`.resolve`), and every connection joins ports that agree on their metadata.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ..communication.ports import SemanticMismatch, check_connection
+from ..computation.functional_entity import coerce
+from .loader import ModelError, format_loc, source_of
+from .model import CompositeModel, EntityModel
+from .registry import UnknownKind, resolve_kind
+from .resolve import PortNotFound, port_of
+
+__all__ = ['check_composite']
+
+Loc = tuple[Any, ...]
+_SCALARS = (bool, int, float, str)
+
+
+def check_composite(model: CompositeModel, sources: dict[Loc, Path], *, at: Loc = ('composite',)) -> None:
+    """Raise the first :class:`ModelError` of ``model`` (found at ``at`` in the loaded tree)."""
+    _composite(model, sources, at, namespace=f'/{model.name}')
+
+
+def _error(sources: dict[Loc, Path], loc: Loc, message: str) -> ModelError:
+    path, inner = source_of(loc, sources)
+    return ModelError(str(path), format_loc(inner), message)
+
+
+def _composite(model: CompositeModel, sources: dict[Loc, Path], loc: Loc, *, namespace: str) -> None:
+    for i, entity in enumerate(model.entities):
+        if isinstance(entity, CompositeModel):
+            _composite(entity, sources, loc + ('entities', i), namespace=f'{namespace}/{entity.name}')
+        else:
+            _entity(entity, sources, loc + ('entities', i))
+    for name, step in model.composition_steps.items():
+        for j, entity in enumerate(step.add):
+            if isinstance(entity, EntityModel):
+                _entity(entity, sources, loc + ('composition_steps', name, 'add', j))
+
+    def port(ref: str, at: Loc):
+        try:
+            return port_of(model, namespace, ref)
+        except (PortNotFound, UnknownKind) as err:
+            raise _error(sources, at, f"'{ref}': {err}") from None
+
+    for name, ref in model.exports.items():
+        port(ref, loc + ('exports', name))
+    for k, connection in enumerate(model.connections):
+        source, source_name = port(connection.source, loc + ('connections', k, 'from'))
+        target, target_name = port(connection.target, loc + ('connections', k, 'to'))
+        try:
+            check_connection(source, target, source_name=source_name, target_name=target_name)
+        except SemanticMismatch as err:
+            raise _error(sources, loc + ('connections', k), str(err)) from None
+    for k, monitor in enumerate(model.monitors):
+        port(monitor.watch, loc + ('monitors', k, 'watch'))
+
+
+def _entity(entity: EntityModel, sources: dict[Loc, Path], loc: Loc) -> None:
+    try:
+        cls = resolve_kind(entity.kind)
+    except UnknownKind as err:
+        raise _error(sources, loc + ('kind',), str(err)) from None
+    params = dict(cls.PARAMETERS)
+    for key, value in entity.parameters.items():
+        at = loc + ('parameters', key)
+        if key not in cls.PARAMETERS:
+            raise _error(sources, at, f"{entity.kind} has no parameter '{key}'; parameters: {sorted(cls.PARAMETERS)}")
+        default = cls.PARAMETERS[key]
+        value = coerce(default, value)
+        if not _same_type(default, value):
+            raise _error(sources, at, f'expected a value like the default {default!r}, got {value!r}')
+        params[key] = value
+    try:
+        cls.port_specs(params)
+    except (TypeError, ValueError, KeyError, IndexError) as err:
+        raise _error(sources, loc + ('parameters',), f'{entity.kind} cannot declare its ports: {err}') from None
+
+
+def _same_type(default: Any, value: Any) -> bool:
+    """ROS parameter types: a scalar of the default's type, or a list of such scalars."""
+    if isinstance(default, list):
+        return isinstance(value, list) and all(isinstance(v, _SCALARS) for v in value) and \
+            (not default or not value or all(type(v) is type(default[0]) for v in value))
+    return type(value) is type(default)

@@ -1,0 +1,523 @@
+"""Bad models are refused cleanly and fast (issue #8, items 1 and 2; README "Faults and bad input /
+Bad models"): every fault of a model, whatever its kind, is a ModelError naming the file, the path
+inside it and the value, found within bounded time before anything starts; the bootstrap exits 2,
+without a traceback and without creating a DDS participant. Models are data: entity kinds come from
+the registry only, includes stay inside the model's folders.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import sys
+import time
+import types
+import typing
+from pathlib import Path
+from typing import Any
+
+import annotated_types
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from pydantic import BaseModel
+
+from itasc_bringup.apps import load_composition
+from itasc_bringup.model import transform
+from itasc_bringup.model.schema import Application
+from itasc_core.composition.loader import MAX_BYTES, MAX_DEPTH, MAX_VALUES, ModelError, format_loc
+from itasc_core.composition.registry import ENTRY_POINTS, known_kind, resolve_kind
+from itasc_core.computation.library import SineSource
+from processes import Spawned
+
+REPO = Path(__file__).resolve().parents[2]
+#: What a refusal may take in-process (the bootstrap's bound, 5 s, includes starting Python).
+BOUND = 3.0
+
+
+@pytest.fixture
+def config(tmp_path: Path) -> Path:
+    """A copy of the shipped config/ to break."""
+    shutil.copytree(REPO / 'config', tmp_path / 'config')
+    return tmp_path / 'config'
+
+
+def _edit(file: Path, change) -> None:
+    data = yaml.safe_load(file.read_text())
+    change(data)
+    file.write_text(yaml.safe_dump(data, sort_keys=False))
+
+
+def refused(app: Path) -> ModelError:
+    start = time.monotonic()
+    with pytest.raises(ModelError) as info:
+        load_composition(str(app))
+    assert time.monotonic() - start < BOUND, f'refused only after {time.monotonic() - start:.1f} s: {info.value}'
+    return info.value
+
+
+def _app(config: Path) -> Path:
+    return config / 'apps' / 'approach_object.yaml'
+
+
+def _program(config: Path) -> Path:
+    return config / 'programs' / 'approach_object.yaml'
+
+
+# -- the cases of issue #8, each refused today by nothing or by a traceback -----------------------------
+
+def test_a_monitor_index_beyond_the_watched_vector_is_refused(config):
+    _edit(_program(config), lambda p: p['monitors'][0].update(watch='ApproachObject.error[9]'))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'monitors[0].watch'), str(err)
+    assert 'ApproachObject.error[9]' in err.message and '6 values' in err.message, str(err)
+
+
+def test_an_index_of_a_single_number_is_refused(config):
+    _edit(_program(config), lambda p: p['monitors'][0].update(watch='ApproachObject.error_norm[0]'))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'monitors[0].watch'), str(err)
+
+
+@pytest.mark.parametrize('value', [math.nan, math.inf, -math.inf])
+def test_a_non_finite_task_weight_is_refused(config, value):
+    task = config / 'tasks' / 'approach_object.yaml'
+    _edit(task, lambda t: t['weights'].__setitem__(1, value))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(task), 'weights[1]'), str(err)
+    assert str(value) in err.message and 'finite' in err.message, str(err)
+
+
+def test_an_object_position_with_nan_is_refused(config):
+    _edit(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'objects[0].xyz[2]'), str(err)
+
+
+def test_a_monitor_threshold_of_nan_is_refused(config):
+    _edit(_program(config), lambda p: p['monitors'][0].update(threshold=math.nan))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'monitors[0].threshold'), str(err)
+
+
+def test_a_negative_minimum_distance_is_refused(config):
+    task = config / 'tasks' / 'avoid_obstacle.yaml'
+    _edit(task, lambda t: t.update(d_min=-0.15))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(task), 'd_min'), str(err)
+    assert '-0.15' in err.message, str(err)
+
+
+def test_a_minimum_distance_above_the_maximum_is_refused(config):
+    task = config / 'tasks' / 'avoid_obstacle.yaml'
+    _edit(task, lambda t: t.update(d_min=0.3, d_max=0.2))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(task), 'd_max'), str(err)
+    assert '0.2' in err.message and '0.3' in err.message, str(err)
+
+
+def test_a_key_given_twice_is_refused(config):
+    app = _app(config)
+    app.write_text(app.read_text().replace('  rate: 100\n', '  rate: 100\n  rate: 5\n'))
+    err = refused(app)
+    assert (err.file, err.path) == (str(app), 'application.rate'), str(err)
+    assert 'twice' in err.message, str(err)
+
+
+def test_a_binary_file_is_refused(config):
+    app = _app(config)
+    app.write_bytes(bytes(range(256)) * 8)
+    err = refused(app)
+    assert (err.file, err.path) == (str(app), 'line 2, column 118'), str(err)  # 0x80, after 0x0a
+    assert '0x80' in err.message, str(err)
+
+
+def test_a_latin1_file_is_refused(config):
+    app = _app(config)
+    app.write_bytes(app.read_text().replace('# The paper', '# Caf\xe9: the paper').encode('latin-1'))
+    err = refused(app)
+    assert (err.file, err.path) == (str(app), 'line 1, column 6'), str(err)
+    assert 'UTF-8' in err.message and '0xe9' in err.message, str(err)
+
+
+def test_deeply_nested_lists_are_refused(config):
+    app = _app(config)
+    app.write_text(app.read_text().replace('  rate: 100\n', '  rate: ' + '[' * 20000 + ']' * 20000 + '\n'))
+    err = refused(app)
+    assert err.file == str(app) and err.path.startswith('application.rate[0][0]'), str(err)
+    assert f'deeper than {MAX_DEPTH}' in err.message, str(err)
+
+
+def test_deep_nesting_through_includes_is_refused(config):
+    for k in range(MAX_DEPTH + 1):
+        (config / f'n{k}.yaml').write_text(f'inner: {{include: n{k + 1}.yaml}}\n')
+    (config / f'n{MAX_DEPTH + 1}.yaml').write_text('1\n')
+    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '../n0.yaml'}))
+    err = refused(_app(config))
+    assert f'deeper than {MAX_DEPTH}' in err.message and err.path, str(err)
+
+
+def test_an_include_of_dev_zero_is_refused(config):
+    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '/dev/zero'}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'tasks[0].include'), str(err)
+    assert '/dev/zero' in err.message and 'outside' in err.message, str(err)
+
+
+@pytest.mark.parametrize('special', ['fifo', 'directory', 'oversized'])
+def test_an_include_of_a_special_or_oversized_file_is_refused(config, special):
+    target = config / 'tasks' / 'special.yaml'
+    if special == 'fifo':
+        os.mkfifo(target)
+    elif special == 'directory':
+        target.mkdir()
+    else:
+        target.write_text('name: x\n' + '#' * MAX_BYTES + '\n')
+    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '../tasks/special.yaml'}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'tasks[0].include'), str(err)
+    assert 'special.yaml' in err.message, str(err)
+
+
+def test_an_include_outside_the_model_folders_is_refused(config, tmp_path):
+    outside = tmp_path / 'elsewhere.yaml'
+    outside.write_text((config / 'tasks' / 'retreat.yaml').read_text())
+    _edit(_program(config), lambda p: p['tasks'].__setitem__(2, {'include': '../../elsewhere.yaml'}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'tasks[2].include'), str(err)
+    assert str(outside) in err.message and 'outside' in err.message, str(err)
+
+
+def test_a_model_file_beyond_the_size_limit_is_refused_without_parsing_it(config):
+    app = _app(config)
+    with app.open('a') as stream:
+        stream.write('# ' + 'x' * 1000 + '\n')
+        stream.write(('    - [' + ', '.join(['0.5'] * 100) + ']\n') * (50 * MAX_BYTES // 500))
+    assert app.stat().st_size > 50 * MAX_BYTES
+    err = refused(app)
+    assert err.file == str(app) and f'larger than {MAX_BYTES} bytes' in err.message, str(err)
+
+
+def test_too_many_values_are_refused(config):
+    _edit(_program(config), lambda p: p.update(name=[[0] * 1000] * (MAX_VALUES // 1000 + 1)))
+    err = refused(_app(config))
+    assert err.file == str(_program(config)) and err.path.startswith('name['), str(err)
+
+
+def test_a_task_included_twice_is_reported_against_the_including_program(config):
+    _edit(_program(config), lambda p: p['tasks'].append({'include': '../tasks/retreat.yaml'}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'tasks[3].include'), str(err)
+    assert 'included twice' in err.message and 'tasks[2]' in err.message, str(err)
+
+
+# -- pattern models: kinds and ports at load time ---------------------------------------------------------
+
+def test_an_unknown_entity_kind_of_a_pattern_model_is_refused_at_load_time(config):
+    program = config / 'pattern' / 'program.yaml'
+    _edit(program, lambda p: p['entities'][2].update(kind='Mixer'))
+    err = refused(config / 'apps' / 'pattern_demo.yaml')
+    assert (err.file, err.path) == (str(program), 'entities[2].kind'), str(err)
+    assert "'Mixer'" in err.message, str(err)
+
+
+def test_an_unknown_port_of_a_pattern_model_is_refused_at_load_time(config):
+    program = config / 'pattern' / 'program.yaml'
+    _edit(program, lambda p: p['connections'][0].update({'from': 'track.commands'}))
+    err = refused(config / 'apps' / 'pattern_demo.yaml')
+    assert (err.file, err.path) == (str(program), 'connections[0].from'), str(err)
+    assert 'commands' in err.message, str(err)
+
+
+def test_an_unknown_parameter_of_a_pattern_entity_is_refused_at_load_time(config):
+    app = config / 'apps' / 'pattern_demo.yaml'
+    _edit(app, lambda a: a['composite']['entities'][1].update(parameters={'sise': 2}))
+    err = refused(app)
+    assert (err.file, err.path) == (str(app), 'composite.entities[1].parameters.sise'), str(err)
+
+
+def test_a_kind_naming_a_module_is_never_imported(config, tmp_path, monkeypatch):
+    marker = tmp_path / 'imported'
+    (tmp_path / 'model_code.py').write_text(f'open({str(marker)!r}, "w").close()\nclass Thing: pass\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    app = config / 'apps' / 'pattern_demo.yaml'
+    _edit(app, lambda a: a['composite']['entities'][1].update(kind='model_code:Thing'))
+    err = refused(app)
+    assert (err.file, err.path) == (str(app), 'composite.entities[1].kind'), str(err)
+    assert not marker.exists(), 'a kind in the model imported code'
+    assert 'model_code' not in sys.modules
+
+
+def test_kinds_are_the_registered_ones_and_those_of_the_entry_point_group(tmp_path, monkeypatch):
+    for target in transform.KINDS.values():  # what the iTaSC transformation produces
+        assert known_kind(target) and resolve_kind(target).__name__ == target.split(':')[1]
+    assert not known_kind('PluginSine')
+    dist = tmp_path / 'itasc_plugin-1.0.dist-info'
+    dist.mkdir()
+    (dist / 'METADATA').write_text('Metadata-Version: 2.1\nName: itasc-plugin\nVersion: 1.0\n')
+    (dist / 'entry_points.txt').write_text(f'[{ENTRY_POINTS}]\nPluginSine = itasc_core.computation.library:SineSource\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert known_kind('PluginSine') and resolve_kind('PluginSine') is SineSource
+
+
+# -- the property: mutations along the schema of the shipped models, all refused ---------------------------
+
+#: The files of approach_object and where each lies in the application model.
+FILES = {
+    'apps/approach_object.yaml': (),
+    'programs/approach_object.yaml': ('application', 'program'),
+    'tasks/approach_object.yaml': ('application', 'program', 'tasks', 0),
+    'tasks/avoid_obstacle.yaml': ('application', 'program', 'tasks', 1),
+    'tasks/retreat.yaml': ('application', 'program', 'tasks', 2),
+    'robots/panda.yaml': ('application', 'program', 'robots', 0),
+    'robots/panda_ready.yaml': ('application', 'drivers', 0, 'initial'),
+}
+#: Fields that name something else in the model, and a name nothing has.
+REFERENCES = {'o1': 'nope/frame', 'o2': 'nope/frame', 'watch': 'Nope.error', 'link': 'nope_link',
+              'urdf': 'nope.urdf', 'robot': 'nope', 'from': 'nope', 'to': 'nope', 'initial': 'nope',
+              'when': 'e_nope', 'tasks': 'Nope', 'monitors': 'nope', 'configure': 'nope'}
+MUTATIONS = ('wrong_type', 'non_finite', 'out_of_range', 'missing_key', 'extra_key', 'unknown_name',
+             'dangling_include', 'cyclic_include', 'huge', 'deep', 'encoding', 'duplicate_key')
+
+
+def _nodes(value: Any, loc: tuple = ()):
+    yield loc, value
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from _nodes(v, loc + (k,))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from _nodes(v, loc + (i,))
+
+
+def _schema_at(loc: tuple) -> tuple[Any, Any]:
+    """The annotation of the application model at ``loc``, and the pydantic field it is (or None)."""
+    annotation, field = typing.Dict[str, Application], None  # noqa: UP006 (the file's top level)
+    for part in loc:
+        annotation = _unwrap(annotation)
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            field = next(f for n, f in annotation.model_fields.items() if part in (n, f.alias))
+            annotation = field.annotation
+            continue
+        args = typing.get_args(annotation)
+        annotation = args[-1] if typing.get_origin(annotation) is dict else args[0]
+        field = None
+    return _unwrap(annotation), field
+
+
+def _unwrap(annotation: Any) -> Any:
+    while typing.get_origin(annotation) in (typing.Union, typing.Annotated, types.UnionType):
+        annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
+    return annotation
+
+
+def _locs(data: Any, site: tuple, where) -> list[tuple]:
+    return [loc for loc, value in _nodes(data) if 'include' not in loc and where(loc, value, site)]
+
+
+def _leaf(loc, value, site):
+    return not isinstance(value, (dict, list)) and not isinstance(value, bool)
+
+
+def _number(loc, value, site):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _bounded(loc, value, site):
+    if not _number(loc, value, site) or not loc or isinstance(loc[-1], int):
+        return False
+    _, field = _schema_at(site + loc)
+    bound = field is not None and any(isinstance(m, (annotated_types.Gt, annotated_types.Ge)) for m in field.metadata)
+    return bound or loc[-1] == 'd_min'
+
+
+def _model_mapping(loc, value, site):
+    return isinstance(value, dict) and set(value) != {'include'} and \
+        isinstance(_schema_at(site + loc)[0], type) and issubclass(_schema_at(site + loc)[0], BaseModel)
+
+
+def _required(loc, value, site):
+    return _model_mapping(loc, value, site) and any(
+        f.is_required() and (f.alias or n) in value for n, f in _schema_at(site + loc)[0].model_fields.items())
+
+
+def _mapping(loc, value, site):
+    return isinstance(value, dict) and set(value) != {'include'}
+
+
+def _reference(loc, value, site):
+    key = next((p for p in reversed(loc) if isinstance(p, str)), None)
+    return isinstance(value, str) and key in REFERENCES and (loc[-1] == key or key in ('when', 'tasks', 'monitors',
+                                                                                         'configure'))
+
+
+def _include_site(loc, value, site):
+    return isinstance(value, dict) and set(value) == {'include'}
+
+
+@st.composite
+def mutations(draw):
+    name = draw(st.sampled_from(sorted(FILES)))
+    data = yaml.safe_load((REPO / 'config' / name).read_text())
+    kind = draw(st.sampled_from(MUTATIONS))
+    site = FILES[name]
+    where = {'wrong_type': _leaf, 'non_finite': _number, 'out_of_range': _bounded, 'missing_key': _required,
+             'extra_key': _mapping, 'unknown_name': _reference, 'huge': _leaf, 'deep': _leaf,
+             'duplicate_key': lambda loc, v, s: _mapping(loc, v, s) and v}.get(kind)
+    if kind in ('dangling_include', 'cyclic_include'):
+        candidates = [loc for loc, value in _nodes(data) if _include_site(loc, value, site)] if kind == \
+            'dangling_include' else [loc for loc, value in _nodes(data) if _mapping(loc, value, site)]
+    elif where is not None:
+        candidates = _locs(data, site, where)
+    else:
+        candidates = [()]
+    if not candidates:
+        kind, candidates = 'encoding', [()]
+    loc = draw(st.sampled_from(candidates))
+    extra = draw(st.integers(min_value=0, max_value=2))
+    return name, kind, loc, extra
+
+
+def _at(data: Any, loc: tuple) -> Any:
+    for part in loc:
+        data = data[part]
+    return data
+
+
+def _put(data: Any, loc: tuple, value: Any) -> Any:
+    if not loc:
+        return value
+    _at(data, loc[:-1])[loc[-1]] = value
+    return data
+
+
+def _mutate(config: Path, name: str, kind: str, loc: tuple, extra: int) -> tuple[str, Any]:
+    """Break file ``name`` in ``config``; returns the path the error must start with and the value."""
+    file = config / name
+    data = yaml.safe_load(file.read_text())
+    value = _at(data, loc)
+    at = format_loc(loc)
+    if kind == 'encoding':
+        raw = file.read_bytes()
+        file.write_bytes([b'# caf\xe9\n' + raw, raw.decode().encode('utf-16'), b'a: \x00\n' + raw][extra])
+        return 'line ', None
+    if kind == 'duplicate_key':
+        key, first = next(iter(value.items()))
+        twice = f'{json.dumps(key)}: {json.dumps(first)}'
+        if not loc:
+            file.write_text(file.read_text() + f'\n{twice}\n')
+        else:
+            text = yaml.safe_dump(_put(data, loc, 'DUPLICATE_HERE'), sort_keys=False)
+            file.write_text(text.replace('DUPLICATE_HERE', f'{{{twice}, {twice}}}', 1))
+        return format_loc(loc + (key,)), None
+    bad: Any
+    if kind == 'wrong_type':
+        bad, expect = ('not a number' if _number(loc, value, ()) else {'a': [1]}), at
+    elif kind == 'non_finite':
+        bad, expect = [math.nan, math.inf, -math.inf][extra], at
+    elif kind == 'out_of_range':
+        bad, expect = (-1 if isinstance(value, int) else -abs(value) - 0.5), at
+    elif kind == 'missing_key':
+        model = _schema_at(FILES[name] + loc)[0]
+        key = next(f.alias or n for n, f in model.model_fields.items() if f.is_required() and (f.alias or n) in value)
+        bad, expect = {k: v for k, v in value.items() if k != key}, format_loc(loc + (key,))
+    elif kind == 'extra_key':
+        bad, expect = {**value, 'bogus_key': {'bogus': 1}}, format_loc(loc + ('bogus_key',))
+    elif kind == 'unknown_name':
+        key = next(p for p in reversed(loc) if isinstance(p, str))
+        bad, expect = REFERENCES[key], at
+    elif kind == 'dangling_include':
+        bad, expect = {'include': 'missing_nope.yaml'}, format_loc(loc + ('include',))
+    elif kind == 'cyclic_include':
+        bad = {'include': os.path.relpath(config / 'apps' / 'approach_object.yaml', file.parent)}
+        expect = format_loc(loc + ('include',))
+    elif kind == 'huge':
+        text = yaml.safe_dump(_put(data, loc, 'HUGE_HERE'), sort_keys=False)
+        file.write_text(text.replace('HUGE_HERE', '[' + '0, ' * MAX_VALUES + '0]', 1))
+        return at, None
+    else:  # deep
+        bad = nested = []
+        for _ in range(MAX_DEPTH + extra * 50):
+            nested.append([])
+            nested = nested[0]
+        expect = at
+    file.write_text(yaml.safe_dump(_put(data, loc, bad), sort_keys=False, default_flow_style=kind == 'deep'))
+    return expect, bad
+
+
+@pytest.fixture(scope='module')
+def shipped(tmp_path_factory) -> Path:
+    config = tmp_path_factory.mktemp('shipped') / 'config'
+    shutil.copytree(REPO / 'config', config)
+    return config
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(mutation=mutations())
+def test_every_mutation_of_a_shipped_model_is_refused_naming_file_and_path(shipped, mutation):
+    name, kind, loc, extra = mutation
+    file = shipped / name
+    original = file.read_bytes()
+    try:
+        expect, bad = _mutate(shipped, name, kind, loc, extra)
+        err = refused(shipped / 'apps' / 'approach_object.yaml')
+    finally:
+        file.write_bytes(original)
+    assert err.file == str(file), f'{kind} at {name}:{format_loc(loc)}: {err}'
+    assert err.path and err.path.startswith(expect), f'{kind} at {name}:{format_loc(loc)}: {err}'
+    if kind == 'non_finite':
+        assert str(bad) in err.message, str(err)
+
+
+# -- through the real bootstrap: exit 2, file and path on stderr, no traceback, no DDS participant ---------
+
+def _bootstrap(model: Path) -> tuple[int, str, float, set[str], int]:
+    """Run the bootstrap on ``model``; its exit code, stderr, run time, the names of its threads seen
+    while it ran and its peak memory (kB)."""
+    threads: set[str] = set()
+    peak = 0
+    start = time.monotonic()
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', str(model), '--duration', '0.5']) as app:
+        while app.process.poll() is None and time.monotonic() - start < 30:
+            try:
+                for task in os.listdir(f'/proc/{app.process.pid}/task'):
+                    with open(f'/proc/{app.process.pid}/task/{task}/comm') as comm:
+                        threads.add(comm.read().strip())
+                with open(f'/proc/{app.process.pid}/status') as status:
+                    peak = max([peak] + [int(line.split()[1]) for line in status if line.startswith('VmHWM')])
+            except (OSError, ValueError):
+                pass
+            time.sleep(0.005)
+        code = app.finish(timeout=30)
+        return code, app.err + app.out, time.monotonic() - start, threads, peak
+
+
+def _cases(config: Path, tmp_path: Path) -> list[tuple[Path, str]]:
+    huge = tmp_path / 'huge.yaml'
+    with huge.open('w') as stream:
+        stream.write('application:\n  rates:\n')
+        stream.write(('    - [' + ', '.join(['0.5'] * 100) + ']\n') * (50 * MAX_BYTES // 500))
+    twice = tmp_path / 'twice.yaml'
+    twice.write_text(_app(config).read_text().replace('  rate: 100\n', '  rate: 100\n  rate: 5\n'))
+    deep = tmp_path / 'deep.yaml'
+    deep.write_text('application:\n  rate: ' + '[' * 20000 + ']' * 20000 + '\n')
+    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '/dev/zero'}))
+    kind = config / 'pattern' / 'program.yaml'
+    _edit(kind, lambda p: p['entities'][2].update(kind='Mixer'))
+    return [(huge, f'{huge}: '), (twice, f'{twice}: application.rate: '), (deep, f'{deep}: application.rate[0]'),
+            (_app(config), f'{_program(config)}: tasks[0].include: '),
+            (config / 'apps' / 'pattern_demo.yaml', f'{kind}: entities[2].kind: ')]
+
+
+def test_the_bootstrap_refuses_bad_models_with_exit_2_fast_and_starts_nothing(config, tmp_path):
+    for model, named in _cases(config, tmp_path):
+        code, output, elapsed, threads, peak = _bootstrap(model)
+        assert code == 2, f'{model}: exit {code}\n{output[-3000:]}'
+        assert named in output and 'Traceback' not in output, output[-3000:]
+        assert elapsed < 5.0, f'{model}: refused after {elapsed:.1f} s'
+        assert peak < 500_000, f'{model}: {peak} kB'
+        assert threads and not any(name.startswith('dds.') for name in threads), threads
