@@ -4,7 +4,10 @@ It validates the application model (a wrong model exits 2 before anything starts
 root composite's Coordinator, Composer and Configurator (configuring the root Configurator with
 the model's configurations), commands ``e_<root>_configure`` and lets the life-cycle bring the
 hierarchy to Running. On ``--duration`` expiry, Ctrl-C or SIGTERM it raises ``e_<root>_stop`` and
-waits for the orderly Stop of the whole hierarchy, then exits 0.
+waits for the orderly Stop of the whole hierarchy, and until every composite's final state was
+seen (and recorded), then exits: 0 after an orderly stop from Running, 3 when the run ended in or
+went through Safety (the reason is printed on one line), 2 for a wrong model, 1 when the hierarchy
+did not stop in time.
 
     bootstrap <app name or model path> [--duration SECONDS] [--record DIR|FILE.mcap]
               [--deploy single|per-composite] [--rate HZ]
@@ -21,10 +24,16 @@ __all__ = ['main', 'parse_args']
 
 #: How long an orderly Stop may take before the bootstrap gives up waiting.
 STOP_TIMEOUT = 20.0
+#: How long, after the root stopped, the final states of the other composites may take to arrive
+#: (a composite process's state travels over DDS; a dead one's never comes).
+FINAL_STATES_TIMEOUT = 3.0
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog='bootstrap', description='Run an iTaSC application model.')
+    parser = argparse.ArgumentParser(
+        prog='bootstrap', description='Run an iTaSC application model.',
+        epilog='exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time; '
+               '2 wrong model (nothing was started); 3 the run ended in or went through Safety')
     parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     parser.add_argument('--duration', type=float, default=None,
                         help='stop SECONDS after the root reached Running (or Safety)')
@@ -63,12 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from itasc_core.communication.events import EventListener, EventRaiser
+    from itasc_core.communication.events import EventRaiser
     from itasc_core.composition.composer import bring_up
     from itasc_core.composition.deployment import Runtime, make_executor, end_process_within
     from itasc_core.composition.model import walk
     from itasc_core.entity import CompositeContext
 
+    from .outcome import EXIT_ERROR, RunOutcome
     from .status import StatusDisplay
 
     stop_requested: list[str] = []
@@ -105,22 +115,20 @@ def main(argv: list[str] | None = None) -> int:
         composites = {m.name: path for path, m in walk(model)}
         from .visualization import start_visualization  # robot_description, TF, markers, /diagnostics
         start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
-        status = StatusDisplay(node, composites=composites,
+        outcome = RunOutcome(node, composites=composites)
+        status = StatusDisplay(node, composites=composites, outcome=outcome,
                                rate=lambda: composer.timer.achieved_rate() if composer.timer else 0.0)
-        failures: list[str] = []
-        EventListener(node, topics=[root.events_topic], immediate=True,
-                      accept=lambda name: name.endswith('_failed') or name.endswith('_refused'),
-                      on_priority=lambda msg: failures.append(f'{msg.name}: {msg.detail}'))
 
         while raiser.publisher.get_subscription_count() < 3 and not stop_requested:
             executor.spin_once(timeout_sec=0.01)  # coordinator, composer, configurator listen
         raiser.raise_event(f'e_{root.name}_configure')
 
         running_since = None
-        stop_sent_at = None
+        stop_sent_at = last_stop = None
         while True:
             executor.spin_once(timeout_sec=0.02)
             runtime.reap()
+            status.show_safety()
             state = coordinator.state
             if running_since is None and (state.startswith('Active.Run.Running') or state == 'Safety'):
                 running_since = time.monotonic()
@@ -128,19 +136,25 @@ def main(argv: list[str] | None = None) -> int:
                 and time.monotonic() - running_since >= args.duration
             if stop_sent_at is None and (stop_requested or due):
                 raiser.raise_event(f'e_{root.name}_stop')
-                stop_sent_at = time.monotonic()
+                stop_sent_at = last_stop = time.monotonic()
+            elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - last_stop > 0.5:
+                # a fault during the Stop put the root in Safety: the stop still stands (Safety ->
+                # Stop), or the hierarchy would wait in Safety for a command already given
+                raiser.raise_event(f'e_{root.name}_stop')
+                last_stop = time.monotonic()
             if state.endswith('NotifyStopped'):
-                shown = time.monotonic() + 1.0  # let the status show the final state
-                while not status.states[root.name].endswith('NotifyStopped') and time.monotonic() < shown:
-                    executor.spin_once(timeout_sec=0.01)
+                _await_final_states(executor, status=status, outcome=outcome, recorder=recorder,
+                                    composites=composites)
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
-                return 1
-        for failure in failures:
-            print(f'warning: {failure}', file=sys.stderr)
-        print(f'{root.name}: stopped ({"signal " + stop_requested[0] if stop_requested else "duration"})')
-        return 0
+                return EXIT_ERROR
+        status.show_safety()
+        for warning in outcome.warnings():
+            print(f'warning: {warning}', file=sys.stderr)
+        how = 'signal ' + stop_requested[0] if stop_requested else 'duration'
+        print(f'{root.name}: stopped ({how}{", went through Safety" if outcome.went_through_safety else ""})')
+        return outcome.exit_code()
     finally:
         if recorder is not None:
             recorder.close()
@@ -154,6 +168,25 @@ def main(argv: list[str] | None = None) -> int:
                 entity.destroy_node()
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _await_final_states(executor, *, status, outcome, recorder, composites: dict[str, str]) -> None:
+    """Spin until the final state of every composite was seen by the status and written by the
+    recorder, except those a Composer stopped on behalf of a dead process; at most
+    :data:`FINAL_STATES_TIMEOUT` s."""
+    def final(name: str) -> bool:
+        if name in outcome.stopped_on_behalf:
+            return True
+        if not status.states[name].endswith('NotifyStopped'):
+            return False
+        if recorder is None:
+            return True
+        written = recorder.last(f'{composites[name]}/state')
+        return written is not None and written.state.endswith('NotifyStopped')
+
+    deadline = time.monotonic() + FINAL_STATES_TIMEOUT
+    while not all(map(final, composites)) and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
 
 
 if __name__ == '__main__':

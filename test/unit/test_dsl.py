@@ -57,17 +57,56 @@ def test_approach_object_has_the_three_levels_of_composition():
     assert [e.name for e in task.entities] == ['VKC', 'CO', 'SPG', 'CC', 'Rows']
     assert set(task.exports) == {'relation', 'rows', 'state', 'progress'}
     assert set(program.entity('AvoidObstacle').exports) == {'relation', 'rows', 'state'}  # no setpoint
-    # the gains of high_accuracy_control live in the Task's Configurator, switched by its Coordinator
-    assert task.configurations['high_accuracy_control'] == {'CC': {'kp': 4.0, 'ki': 2.0}}
-    assert 'e_high_accuracy_control' in task.running.states['high_accuracy_control'].raise_
-    # the program's Running sub-FSM activates Tasks, switches Monitors and configurations
+    # the program's Running sub-FSM activates Tasks and switches Monitors
     states = program.running.states
     assert {'e_Retreat_deactivate', 'e_ApproachObject_activate', 'e_arrived_on'} <= set(states['approach'].raise_)
-    assert 'e_high_accuracy_control' in states['hold'].raise_
     monitor = next(m for m in program.monitors if m.event == 'e_max_pos_tracking_error_exc')
     assert (monitor.watch, monitor.field, monitor.enabled) == ('ApproachObject.state', 'error_norm', True)
     assert not next(m for m in program.monitors if m.name == 'converged').enabled
     assert app.rate == 100
+
+
+def _running_fsm(model: CompositeModel, *, root: bool):
+    """The composite's life-cycle FSM brought to Running, and the events it raises from then on."""
+    from itasc_core.composition.composer import running_spec
+    from itasc_core.coordination.lifecycle import LifecycleFsm
+
+    raised: list[str] = []
+    fsm = LifecycleFsm(composite=model.name, children=[c.name for c in model.children], is_root=root,
+                       raise_event=lambda name, to_parent: raised.append(name), running=running_spec(model))
+    c, kids = model.name, [k.name for k in model.children]
+    for step in (['configure', 'deployed', 'entities_configured'], ['connected', 'start', 'scheduler_initialized'],
+                 ['run', 'scheduler_activated']):
+        for event in [f'e_{c}_{s}' for s in step] + [f'e_{k}_{n}' for k in kids for n in
+                                                     ('configured', 'started', 'running')]:
+            fsm.process(event)
+    assert fsm.state.startswith('Active.Run.Running'), fsm.state
+    raised.clear()
+    return fsm, raised
+
+
+def test_a_configuration_of_the_running_sub_fsm_reaches_the_task_it_configures():
+    """Fig. 3 as pure event processing: the program's hold state commands high_accuracy_control to
+    ApproachObject alone; that Task's Coordinator enters its switch state and raises the event its
+    own Configurator applies, with the Task's gains."""
+    program = load_composition('approach_object').entity('itasc')
+    task = program.entity('ApproachObject')
+    fsm, raised = _running_fsm(program, root=False)
+    fsm.process('e_ApproachObject_arrived')  # approach -> hold
+    assert fsm.running_substate == 'hold'
+    commands = [e for e in raised if 'accuracy' in e]
+    assert commands == ['e_ApproachObject_high_accuracy_control']  # addressed to the one Task concerned
+    task_fsm, task_raised = _running_fsm(task, root=False)
+    for command in commands:
+        task_fsm.process(command)
+    assert task_fsm.running_substate == 'high_accuracy_control'
+    assert task_raised == ['e_high_accuracy_control']
+    assert task.configurations['high_accuracy_control'] == {'CC': {'kp': 4.0, 'ki': 2.0}}
+    for other in ('AvoidObstacle', 'Retreat'):  # no other Task reacts to it
+        other_fsm, other_raised = _running_fsm(program.entity(other), root=False)
+        for command in commands:
+            other_fsm.process(command)
+        assert other_raised == [] and other_fsm.state == 'Active.Run.Running'
 
 
 def test_the_ros_driver_application_runs_the_same_program_with_another_driver():
@@ -359,14 +398,27 @@ def test_joint_limits_in_the_model_override_the_urdfs(tmp_path):
 
 
 def test_a_moving_object_follows_its_trajectory_in_the_scene(tmp_path):
-    from itasc_core.itasc.objects import Object, periodic_translation
+    """The Scene the model builds (its SceneEntity, from the parameters the transform gives it) moves
+    the object along the trajectory of the model."""
+    from itasc_core.entity import CompositeContext
+    from itasc_core.itasc.entities import SceneEntity
+
     model = copy.deepcopy(BASE)
     target = model['application']['program']['objects'][0]
     target['motion'] = {'amplitude': [0.0, 0.1, 0.0], 'period': 4.0}
-    scene = next(e for e in load_composition(str(_write(tmp_path, 'app.yaml', model))).entity('itasc').entities
-                 if e.name == 'Scene')
-    assert "motion: {amplitude: [0.0, 0.1, 0.0], period: 4.0}" in scene.parameters['objects'][0]
-    moving = Object('target', xyz=target['xyz'], trajectory=periodic_translation(
-        xyz=target['xyz'], rpy=(0, 0, 0), amplitude=(0.0, 0.1, 0.0), period=4.0))
-    moving.update(1.0)  # a quarter period: the full amplitude
-    assert moving.frame_pose().translation[1] == pytest.approx(target['xyz'][1] + 0.1)
+    scene_model = next(e for e in load_composition(str(_write(tmp_path, 'app.yaml', model))).entity('itasc').entities
+                       if e.name == 'Scene')
+    rclpy.init()
+    try:
+        entity = SceneEntity('Scene', composite=CompositeContext(name='itasc', namespace='/app/itasc'),
+                             parameters=scene_model.parameters)
+        try:
+            scene = entity.scene
+            for t, dy in ((0.0, 0.0), (1.0, 0.1), (2.0, 0.0), (3.0, -0.1)):  # quarter periods
+                scene.update(t)
+                y = scene.pose('target').translation[1]
+                assert y == pytest.approx(target['xyz'][1] + dy, abs=1e-9), (t, y)
+        finally:
+            entity.destroy_node()
+    finally:
+        rclpy.try_shutdown()

@@ -208,18 +208,30 @@ def test_qp_reports_a_singular_configuration_and_stays_bounded(panda, solver):
     assert result.min_singular_value == pytest.approx(np.linalg.svd(J, compute_uv=False)[-1])
 
 
-def test_qp_checks_singularity_every_period_th_step(panda):
-    """Between checks the last measured value is reported, then it is measured again."""
-    solver = QpSolver(singularity_check_period=3)
+def test_qp_detects_a_singularity_within_its_check_period(panda):
+    """The arm reaching a singular pose is reported singular within ``singularity_check_period``
+    steps, leaving it is reported within as many, and the value reported is the one measured at
+    the arm's pose of the last check (numpy's SVD of the task Jacobian)."""
+    period = 3
+    solver = QpSolver(singularity_check_period=period)
     limits = dict(q=np.zeros(7), lower=-INF[:7], upper=INF[:7], velocity_limit=np.full(7, 2.0), dt=0.01)
     stretched, ready = np.array([0.0, 0.0, 0.0, -1e-6, 0.0, np.pi / 2, 0.0]), np.array(PANDA_READY)
-    statuses = []
-    for q in (stretched, ready, ready, ready):
+    poses = [ready] * 4 + [stretched] * 4 + [ready] * 4
+    singular, measured = [], []
+    for q in poses:
         panda.set_position_vector(q)
         panda.update()
-        rows = [ConstraintRows.equality('hand', panda.frame_jacobian('ee'), np.zeros(6))]
-        statuses.append(solver.solve(rows, **limits).singular)
-    assert statuses == [True, True, True, False]
+        J = panda.frame_jacobian('ee')
+        result = solver.solve([ConstraintRows.equality('hand', J, np.zeros(6))], **limits)
+        singular.append(result.singular)
+        measured.append((result.min_singular_value, np.linalg.svd(J, compute_uv=False)[-1]))
+    for change, expected in ((4, True), (8, False)):
+        first = next(i for i in range(change, len(poses)) if singular[i] == expected)
+        assert first - change < period, (change, singular)
+        assert all(s == expected for s in singular[first:change + 4]), singular
+    checks = [i for i in range(len(poses)) if i % period == 0]
+    for i in checks:  # measured at that step's pose
+        assert measured[i][0] == pytest.approx(measured[i][1], rel=1e-9), (i, measured[i])
 
 
 @pytest.mark.parametrize('solver', SOLVERS, ids=IDS)

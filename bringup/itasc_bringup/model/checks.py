@@ -224,14 +224,19 @@ def _index(where: _Where, loc: Loc, watch: str, values: tuple[str, ...] | None) 
 
 
 def _configurations(where: _Where, program: Program) -> None:
-    tasks = {t.name for t in program.tasks}
+    tasks = {t.name: t for t in program.tasks}
     monitors = {m.name for m in program.monitors}
     for name, targets in program.configurations.items():
         for target, settings in targets.items():
             loc = ('program', 'configurations', name, target)
             if target in tasks:
-                if settings.controller is None:
-                    raise where.error(loc, "a configuration sets a task's controller, not a threshold")
+                if not settings.for_task:
+                    raise where.error(loc, "a configuration sets a task's controller, weights or priority, "
+                                      'not a threshold')
+                m = len(tasks[target].selected)
+                if settings.weights is not None and len(settings.weights) not in (1, m):
+                    raise where.error(loc + ('weights',), f'one value, or one per output ({m}), expected '
+                                      f'(got {len(settings.weights)})')
             elif target in monitors:
                 if settings.threshold is None:
                     raise where.error(loc, "a configuration sets a monitor's threshold, not a controller")

@@ -254,16 +254,32 @@ class ControllerSettings(_Model):
 
 
 class Settings(_Model):
-    """What a named configuration sets on one target: a Task's ``controller`` gains, or a
-    Monitor's ``threshold``."""
+    """What a named configuration sets on one target (paper §5, §6.1 Run: "the task weights and
+    priorities"): a Task's ``controller`` gains, its row ``weights`` and its ``priority`` level, or
+    a Monitor's ``threshold``."""
 
     controller: ControllerSettings | None = None
+    weights: list[float] | None = None
+    priority: int | None = Field(default=None, ge=0)
     threshold: float | None = None
+
+    _list = field_validator('weights', mode='before')(_as_list)
+
+    @field_validator('weights')
+    @classmethod
+    def _positive(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and (not value or any(not w > 0 for w in value)):
+            raise ValueError('weights must be > 0')
+        return value
+
+    @property
+    def for_task(self) -> bool:
+        return self.controller is not None or self.weights is not None or self.priority is not None
 
     @model_validator(mode='after')
     def _something(self) -> 'Settings':
-        if (self.controller is None) == (self.threshold is None):
-            raise ValueError('set either controller (of a task) or threshold (of a monitor)')
+        if self.for_task == (self.threshold is not None):
+            raise ValueError("set a task's controller, weights or priority, or a monitor's threshold")
         return self
 
 

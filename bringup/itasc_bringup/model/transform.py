@@ -15,11 +15,14 @@
 
 The Running sub-FSM of the program becomes the program composite's: entering a state raises
 ``e_<Task>_activate``/``_deactivate`` (its Scheduler switches Tasks), ``e_<monitor>_on``/``_off``
-(Monitors), ``e_<configuration>`` and the state's own events. A configuration's controller gains
-live in the Configurator of the Task they concern (paper §5.1: each composite's Configurator
-configures its own entities); the Task's Coordinator applies one when its parent raises
-``e_<configuration>``: a small Running sub-FSM of the Task, one state per configuration
-(paper Fig. 3: the Task's Coordinator commands ``e_high_accuracy_control`` to its Configurator).
+(Monitors), the state's configurations and its own events. A configuration's settings live in
+the Configurator of the composite whose entities they concern (paper §5.1: each composite's
+Configurator configures its own entities): Monitor thresholds in the program's, which applies
+``e_<configuration>``; controller gains, row weights and the priority level in the Task's. The
+program addresses those to each Task concerned as ``e_<Task>_<configuration>``
+(:mod:`itasc_core.communication.event_names`); the Task's Running sub-FSM, one state per
+configuration, enters that state and raises ``e_<configuration>`` in the Task, which its
+Configurator applies and answers with ``e_<configuration>_applied`` (paper Fig. 3).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import math
 from typing import Any
 
 import yaml
+from itasc_core.communication.event_names import to_child
 from itasc_core.composition.model import (CompositeModel, ConnectionModel, EntityModel, MonitorModel,
                                           RunningModel, SafetyModel)
 
@@ -107,7 +111,8 @@ def _driver(driver: Driver, robot, rate: float) -> EntityModel:
         return EntityModel(name=name, kind=KINDS['simulated'], parameters={
             'robot': robot.name, 'urdf': robot.urdf, 'base': robot.base,
             'initial_names': list(driver.initial) or [''],
-            'initial_positions': [float(v) for v in driver.initial.values()] or [0.0]})
+            'initial_positions': [float(v) for v in driver.initial.values()] or [0.0],
+            **_joint_limits([robot])[1]})
     suffix = 'joint_trajectory' if driver.interface == 'trajectory' else 'commands'
     controller = driver.controller.strip('/')
     return EntityModel(name=name, kind=KINDS['ros2_control'], parameters={
@@ -169,21 +174,29 @@ def _scene(app: Application) -> EntityModel:
 
 def _solver(app: Application) -> EntityModel:
     solver = app.program.solver
-    models = [load_robot(r.name, r.urdf, r.base) for r in app.program.robots]
+    joints, limits = _joint_limits(app.program.robots)
+    return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
+        'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
+        'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
+        'damping': solver.damping, 'regularization': solver.regularization,
+        'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+
+
+def _joint_limits(robots) -> tuple[list[str], dict[str, list[float]]]:
+    """The joints of ``robots`` in order and their ``lower``/``upper``/``velocity_limit``: the
+    URDF's, overridden by the model's ``limits`` (the Solver plans and the simulated robot moves
+    within the same limits)."""
+    models = [load_robot(r.name, r.urdf, r.base) for r in robots]
     joints = [j for m in models for j in m.joint_names]
     limits = {key: [float(v) for m in models for v in getattr(m, key)] for key in ('lower', 'upper', 'velocity_limit')}
-    for robot in app.program.robots:  # the model's limits override the URDF's
+    for robot in robots:
         for joint, override in robot.limits.items():
             i = joints.index(joint)
             for key, value in (('lower', override.lower), ('upper', override.upper),
                                ('velocity_limit', override.velocity)):
                 if value is not None:
                     limits[key][i] = float(value)
-    return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
-        'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
-        'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
-        'damping': solver.damping, 'regularization': solver.regularization,
-        'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+    return joints, limits
 
 
 def _initially_inactive(program: Program) -> list[str]:
@@ -222,7 +235,12 @@ def _running(program: Program) -> RunningModel | None:
         return None
     states = {}
     for name, state in fsm.states.items():
-        events = [f'e_{c}' for c in state.configure]
+        events = []
+        for c in state.configure:
+            targets = program.configurations[c]
+            if any(s.threshold is not None for s in targets.values()):
+                events.append(f'e_{c}')  # the program's own Configurator (Monitor thresholds)
+            events += [to_child(t, c) for t, s in targets.items() if s.for_task]
         if state.tasks is not None:
             events += [f"e_{t.name}_{'activate' if t.name in state.tasks else 'deactivate'}" for t in program.tasks]
         if state.monitors is not None:
@@ -264,13 +282,24 @@ def _task(program: Program, task: Task, period: float) -> CompositeModel:
     exports |= {'rows': 'Rows.rows', 'state': 'Rows.state'}
     if equality:
         exports['progress'] = 'SPG.progress'
-    configurations = {name: {'CC': targets[t].controller.model_dump(exclude_none=True)}
-                      for name, targets in program.configurations.items()
-                      if t in targets and targets[t].controller is not None}
+    configurations = {name: _task_settings(targets[t]) for name, targets in program.configurations.items()
+                      if t in targets and targets[t].for_task}
     return CompositeModel(name=t, entities=entities, connections=connections, exports=exports,
                           configurations=configurations,
                           configure=[name for name in program.configure if name in configurations],
-                          running=_configuration_switch(configurations), safety=EMERGENCY)
+                          running=_configuration_switch(t, configurations), safety=EMERGENCY)
+
+
+def _task_settings(settings) -> dict[str, dict[str, Any]]:
+    """A Task's part of a named configuration, per entity: gains (CC), weights and priority (Rows)."""
+    entities: dict[str, dict[str, Any]] = {}
+    if settings.controller is not None:
+        entities['CC'] = settings.controller.model_dump(exclude_none=True)
+    rows = {'weights': [float(w) for w in settings.weights] if settings.weights is not None else None,
+            'priority': settings.priority}
+    if any(v is not None for v in rows.values()):
+        entities['Rows'] = {k: v for k, v in rows.items() if v is not None}
+    return entities
 
 
 def _chain(task: Task) -> dict[str, Any]:
@@ -298,12 +327,12 @@ def _setpoint(task: Task, outputs: list[str]) -> dict[str, Any]:
     return params
 
 
-def _configuration_switch(configurations: dict[str, Any]) -> RunningModel | None:
-    """The Task's Running sub-FSM: on the parent's ``e_<configuration>``, enter that state, which
-    raises ``e_<configuration>`` in the Task, where its Configurator applies it."""
+def _configuration_switch(task: str, configurations: dict[str, Any]) -> RunningModel | None:
+    """The Task's Running sub-FSM: on the parent's ``e_<Task>_<configuration>``, enter that state,
+    which raises ``e_<configuration>`` in the Task, where its Configurator applies it."""
     if not configurations:
         return None
     states = {AS_CONFIGURED: {}} | {name: {'raise': [f'e_{name}']} for name in configurations}
-    transitions = [{'from': s, 'to': name, 'when': [f'e_{name}']}
+    transitions = [{'from': s, 'to': name, 'when': [to_child(task, name)]}
                    for name in configurations for s in states if s != name]
     return RunningModel.model_validate({'initial': AS_CONFIGURED, 'states': states, 'transitions': transitions})

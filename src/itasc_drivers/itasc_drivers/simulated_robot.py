@@ -2,8 +2,9 @@
 
 Every tick of the program it integrates the commanded joint velocities over the time since the
 previous tick (so at the program rate) on the robot's kinematic model (a mobile base moves in
-its own frame, as the Solver commands it), within the joint velocity and position limits of the
-URDF, and publishes the joint state (``sensor_msgs/JointState`` with names, positions and the
+its own frame, as the Solver commands it), within the joint velocity and position limits (the
+URDF's, or those given as ``lower``/``upper``/``velocity_limit``, one value per joint, e.g. the
+application model's overrides), and publishes the joint state (``sensor_msgs/JointState`` with names, positions and the
 applied velocities), also on ``<composite namespace>/<robot>/joint_states`` for
 robot_state_publisher and RViz. Input ``command``: the Solver's ``JointVelocities(program)``, from which it
 takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)``.
@@ -14,6 +15,7 @@ takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)`
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from typing import Any
 
@@ -42,6 +44,10 @@ class SimulatedRobot(FunctionalEntity):
         'base': 'fixed',
         'initial_names': [''],
         'initial_positions': [0.0],
+        # one value per joint of the robot, or the single default: the URDF's limits
+        'lower': [math.nan],
+        'upper': [math.nan],
+        'velocity_limit': [math.nan],
     }
 
     @classmethod
@@ -52,6 +58,9 @@ class SimulatedRobot(FunctionalEntity):
         if getattr(self, 'robot', None) is not None:
             return  # the simulated world keeps its state across re-configuration
         self.robot = Robot(params['robot'], params['urdf'], base=params['base'])
+        for key in ('lower', 'upper', 'velocity_limit'):
+            if len(params[key]) == len(getattr(self.robot, key)):
+                getattr(self.robot, key)[:] = params[key]
         self.robot.set_positions([n for n in params['initial_names'] if n], params['initial_positions'])
         self.robot.set_position_vector(self._within_limits(self.robot.positions))
         self.velocity = np.zeros(self.robot.nv)

@@ -14,12 +14,10 @@ from rclpy.node import Node
 
 from itasc_msgs.msg import Event
 
+from .event_names import is_priority
 from .qos import EVENT_QOS
 
-__all__ = ['Event', 'EventRaiser', 'EventListener', 'events_topic', 'PRIORITY_EVENTS']
-
-#: Events that are always priority events, whoever raises them.
-PRIORITY_EVENTS = frozenset({'e_emergency'})
+__all__ = ['Event', 'EventRaiser', 'EventListener', 'events_topic']
 
 
 def events_topic(namespace: str) -> str:
@@ -47,7 +45,7 @@ class EventRaiser:
         msg.source = self._source
         msg.name = name
         msg.seq = self._seq
-        msg.priority = priority or name in PRIORITY_EVENTS
+        msg.priority = priority or is_priority(name)
         msg.detail = detail
         self._publisher.publish(msg)
         return msg

@@ -90,6 +90,7 @@ class Monitor(FunctionalEntity):
         super().__init__(name, composite=composite, parameters=parameters)
         self._holding = False
         self._since: float | None = None  # staleness is measured from the first tick on
+        self._last_update: float | None = None
         self._seen = 0
         self.raised = 0
         self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._switch,
@@ -121,7 +122,7 @@ class Monitor(FunctionalEntity):
         self._since = None
 
     def start(self) -> None:
-        self._since = None
+        self._since = self._last_update = None
 
     @property
     def watch(self) -> InputPort:
@@ -134,6 +135,13 @@ class Monitor(FunctionalEntity):
             return
         port = self.watch
         now = time.monotonic()
+        if self._since is not None and self._last_update is not None \
+                and now - self._last_update > self.condition.timeout / 2:
+            # This process did not run for a while (its executor was busy, e.g. destroying a
+            # composite's nodes): samples that arrived meanwhile are still queued, so the time
+            # nobody listened is not the data's age.
+            self._since += now - self._last_update
+        self._last_update = now
         if port.received != self._seen or self._since is None:
             self._seen, self._since = port.received, now
         needs_values = self.condition.kind != 'stale' and port.latest is not None

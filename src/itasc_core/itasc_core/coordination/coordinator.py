@@ -13,10 +13,11 @@ from typing import Iterable
 
 from itasc_msgs.msg import CoordinatorState
 
+from ..communication.event_names import from_parent, is_addressed_to, is_priority
 from ..communication.events import EventListener, EventRaiser
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
-from .lifecycle import SAFETY_EVENT, LifecycleFsm, RunningFsmSpec
+from .lifecycle import LifecycleFsm, RunningFsmSpec
 
 __all__ = ['Coordinator']
 
@@ -64,19 +65,18 @@ class Coordinator(Entity):
         return self.fsm.is_relevant(name) or name == f'e_{self.composite.name}_composed'
 
     def _accepts_parent(self, name: str) -> bool:
-        return name.startswith(f'e_{self.composite.name}_') or name == SAFETY_EVENT
+        return is_addressed_to(self.composite.name, name)
 
     def _process_parent(self, msg) -> None:
-        """Commands from the parent: life-cycle commands go to the FSM; any other
-        ``e_<composite>_<x>`` is passed into this composite as ``e_<x>`` (e.g. the parent selects
-        ``e_<Task>_high_accuracy_control``, the Task's Configurator reacts to
-        ``e_high_accuracy_control``)."""
-        if msg.source == self.get_fully_qualified_name() or msg.name == SAFETY_EVENT:
-            return  # our own notifications; the parent's emergency is the parent's business
+        """Commands from the parent (:mod:`..communication.event_names`): those the life-cycle FSM
+        reacts to go to the FSM (``e_<composite>_configure``, a configuration switch of the Running
+        sub-FSM); any other ``e_<composite>_<x>`` is passed into this composite as ``e_<x>``."""
+        if msg.source == self.get_fully_qualified_name():
+            return  # our own notifications to the parent
         if self.fsm.is_relevant(msg.name):
             self._process(msg)
         elif msg.name not in self._notifications:
-            self._raiser.raise_event('e_' + msg.name.removeprefix(f'e_{self.composite.name}_'))
+            self._raiser.raise_event(from_parent(self.composite.name, msg.name), detail=msg.detail)
 
     def _gap(self, source: str, last: int, seq: int) -> None:
         self.get_logger().error(f'lost events from {source}: after #{last} came #{seq}')
@@ -98,7 +98,7 @@ class Coordinator(Entity):
 
     def _raise(self, name: str, to_parent: bool) -> None:
         raiser = self._to_parent if to_parent else self._raiser
-        raiser.raise_event(name, priority=name == SAFETY_EVENT)
+        raiser.raise_event(name, priority=is_priority(name))
 
     def _publish_state(self, state: str, previous: str, event: str) -> None:
         self.history.append((state, event))

@@ -12,6 +12,11 @@ States carry the paper's names, fully qualified with dots::
     Active.Stop.Stopping, Active.Stop.Stopped.{Disengage, CleanupComputation, Cleanup, NotifyStopped}
     Safety
 
+Safety is entered from anywhere in Active on ``e_emergency``, on a failure report of this
+composite's Composer, Configurator or Scheduler, or when the parent entered Safety (it commands
+``e_<child>_emergency`` to every child, so that no composite below one in Safety goes on
+running). Leaving it takes a reconfiguration (``e_<c>_configure``) or an orderly stop.
+
 Every transition waits for a *set* of events (∀ in Fig. 5). Event memory (the rFSM extension)
 records the events that arrived since the current state was entered and is cleared on every state
 entry, so a transition fires as soon as all of its events are in memory, in whatever order and at
@@ -31,6 +36,8 @@ from typing import Callable, Iterable
 
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
+from ..communication.event_names import SAFETY_EVENT
+
 __all__ = [
     'LifecycleFsm',
     'RunningFsmSpec',
@@ -39,8 +46,6 @@ __all__ = [
     'Raise',
     'SAFETY_EVENT',
 ]
-
-SAFETY_EVENT = 'e_emergency'
 
 #: ``raise_event(name, to_parent)``: ``to_parent`` sends the event to the parent composite's event
 #: topic (notifications such as ``e_<c>_configured``); otherwise to this composite's own topic.
@@ -63,7 +68,7 @@ _ENTRY_EVENTS: dict[str, tuple[tuple[str, str], ...]] = {
     'CleanupComputation': (('own', 'cleanup_computation'),),
     'Cleanup': (('own', 'cleanup'),),
     'NotifyStopped': (('parent', 'stopped'),),
-    'Safety': (('own', 'safety'),),
+    'Safety': (('own', 'safety'), ('children', 'emergency')),
 }
 
 
@@ -281,6 +286,7 @@ class LifecycleFsm:
         for failure in ('deploy_failed', 'configure_failed', 'connect_failed', 'scheduler_failed'):
             add('Active', 'Safety', ev(failure))
         add('Active', 'Safety', SAFETY_EVENT)
+        add('Active', 'Safety', ev('emergency'))  # the parent entered Safety: so does every child
         add('Init', 'Active', ev('configure'))
         add('Safety', 'Active', ev('configure'))  # leaving Safety requires reconfiguration
         add('Safety', 'Active.Stop', ev('stop'))  # an orderly teardown is still possible

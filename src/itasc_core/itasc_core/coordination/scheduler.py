@@ -6,6 +6,10 @@ through their Coordinators (§6.1: a Task must compute in the tick it is trigger
 this process is called; a child in another process gets a trigger message on its trigger topic.
 It answers the Coordinator's life-cycle events (initialise, activate, disengage, Safety) and
 switches single entities on and off (``e_<entity>_activate`` / ``e_<entity>_deactivate``).
+
+In Safety it keeps being triggered but computes nothing: every tick it has each entity bring its
+outputs to their safe value (a Driver commands zero velocity at every tick, not once), and passes
+the tick on to its children, which are in Safety too.
 """
 
 from __future__ import annotations
@@ -43,6 +47,8 @@ class Scheduler(Entity):
         self._items: list[_Item] = []
         self._monitors: list[Monitor] = []
         self.active = False
+        #: In Safety: each tick makes every entity safe instead of computing.
+        self.safety = False
         self.ticks = 0
         self.faulted = False
         c = composite.name
@@ -127,29 +133,44 @@ class Scheduler(Entity):
         return [i.entity for i in self._items if i.entity is not None] + self._monitors
 
     def _initialize(self) -> None:
+        self.safety = False
         for entity in self._entities():
             entity.start()
         self.faulted = False
         self.raise_event(f'e_{self.composite.name}_scheduler_initialized')
 
     def _activate(self) -> None:
+        self.safety = False
         self.active = not self.faulted
         self.raise_event(f'e_{self.composite.name}_scheduler_activated')
 
     def _disengage(self) -> None:
-        self.active = False
+        self.active = self.safety = False
         for entity in self._entities():
             entity.disengage()
         self.raise_event(f'e_{self.composite.name}_disengaged')
 
     def _safety(self) -> None:
         self.active = False
-        for entity in self._entities():
-            entity.safe()
+        self.safety = True
+        self._make_safe(0.0)
+
+    def _make_safe(self, t: float) -> None:
+        for item in self._items:
+            try:
+                if item.entity is not None:
+                    item.entity.safe()
+                else:
+                    item.run(t)  # a child composite: its Scheduler is in Safety as well
+            except Exception as err:  # noqa: BLE001 - one entity failing must not spare the others
+                self.get_logger().error(f'{item.name} could not be made safe: {err}', throttle_duration_sec=1.0)
 
     # -- the time-triggered part --------------------------------------------------------------------
 
     def tick(self, t: float) -> None:
+        if self.safety:
+            self._make_safe(t)
+            return
         if not self.active:
             return
         self.ticks += 1

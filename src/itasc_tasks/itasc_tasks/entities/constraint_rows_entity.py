@@ -42,7 +42,7 @@ class ConstraintRowsEntity(FunctionalEntity):
         ]
 
     def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        if params['priority'] < 0 or min(params['weights']) <= 0:
+        if params['priority'] < 0 or not all(w > 0 for w in params['weights']):
             return 'priority must be >= 0 and weights > 0'
         return None
 

@@ -11,9 +11,11 @@ inequalities through qpsolvers) within the joint position and velocity limits, a
   Driver picks its own joints by name (semantics ``JointVelocities(program)``);
 * ``status``: ``itasc_msgs/SolverStatus`` every tick.
 
-It raises ``e_solver_singular`` / ``e_solver_infeasible`` / ``e_solver_saturated`` when the status
-becomes one of these (and ``e_solver_ok`` when it recovers), and never outputs NaN: on any
-non-finite input or result it commands zero velocity and raises ``e_emergency``.
+It raises ``e_solver_singular`` / ``e_solver_saturated`` when the status becomes one of these
+(and ``e_solver_ok`` when it recovers), and never outputs NaN or the answer to a problem it could
+not solve: on any non-finite input or result, and on an infeasible problem (hard constraints that
+contradict each other, a QP backend that fails), it commands zero velocity and raises
+``e_emergency`` naming the reason, which puts the program in Safety.
 """
 
 from __future__ import annotations
@@ -39,6 +41,10 @@ ROWS_SEMANTICS = f'ConstraintRows({PROGRAM_VELOCITIES})'
 
 
 class NonFinite(ValueError):
+    pass
+
+
+class Infeasible(ValueError):
     pass
 
 
@@ -121,9 +127,13 @@ class SolverEntity(FunctionalEntity):
                                        velocity_limit=self.velocity_limit, dt=self._dt)
             if not np.isfinite(result.qdot).all():
                 raise NonFinite('the solver returned non-finite joint velocities')
-        except NonFinite as err:
+            if result.infeasible:
+                self._report(result, t)
+                tasks = ', '.join(dict.fromkeys(result.violated)) or ', '.join(result.tasks)
+                raise Infeasible(f'infeasible problem: the constraints of {tasks} cannot be met together')
+        except (NonFinite, Infeasible) as err:
             self._command(np.zeros(len(self.joint_names)), t)
-            self.raise_event('e_emergency', priority=True, detail=f'{self.entity_name}: {err}')
+            self.raise_event('e_emergency', priority=True, detail=str(err))
             return
         self._command(result.qdot, t)
         self._report(result, t)

@@ -62,6 +62,8 @@ class SolverResult:
     damping: float = 0.0
     solve_time: float = 0.0
     tasks: list[str] = field(default_factory=list)
+    #: Tasks whose rows could not be met (infeasible): a failed level, or a violated inequality.
+    violated: list[str] = field(default_factory=list)
 
     def set_status(self) -> None:
         self.status = ('infeasible' if self.infeasible else 'singular' if self.singular

@@ -103,6 +103,7 @@ class QpSolver:
             x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
             if x is None:
                 result.infeasible = True
+                result.violated += [r.task for r in level]
                 break
             qdot = np.minimum(np.maximum(x, lb), ub)
             if k == len(levels) - 1:
@@ -118,7 +119,9 @@ class QpSolver:
             if r.inequality:
                 y = r.J @ qdot
                 violation = np.maximum(r.lower - y, y - r.upper)
-                result.infeasible |= bool(violation.max(initial=0.0) > self.slack_tolerance)
+                if violation.max(initial=0.0) > self.slack_tolerance and r.task not in result.violated:
+                    result.infeasible = True
+                    result.violated.append(r.task)
         # a bound shaped the solution (a zero bound: the joint rests exactly at its limit)
         result.saturated = bool(((ub - qdot <= 1e-9) & (np.abs(ub) > 1e-9)).any()
                                 or ((qdot - lb <= 1e-9) & (np.abs(lb) > 1e-9)).any())

@@ -70,10 +70,13 @@ class WdlsSolver:
                 break
         for r in inequalities:
             y = r.J @ qdot
-            result.infeasible |= bool(np.maximum(r.lower - y, y - r.upper).max() > 1e-6)
+            if np.maximum(r.lower - y, y - r.upper).max() > 1e-6:
+                result.infeasible = True
+                result.violated.append(r.task)
         if not np.isfinite(qdot).all():
             qdot = np.zeros(n)
             result.infeasible = True
+            result.violated += [r.task for r in rows]
         lo, hi = velocity_bounds(q, lower, upper, velocity_limit, dt, self.position_limit_gain)
         bound = np.where(qdot > 0.0, np.maximum(hi, 0.0), np.minimum(lo, 0.0))
         exceeded = np.abs(qdot) > np.abs(bound)

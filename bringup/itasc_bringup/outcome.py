@@ -1,0 +1,100 @@
+"""How a run went, as the bootstrap tells it (paper §6.1 Safety; §7.2 events carry their source).
+
+Listens to the event topic of every composite of the model for faults: ``e_emergency`` (the
+priority event that puts a composite in Safety), failed life-cycle steps (``_failed``) and refused
+connections. The first fault whose detail says what happened is the reason of a Safety: the
+events raised on its way up the hierarchy carry no detail of their own. It also tells which
+composites a Composer stopped on behalf of a dead composite process, whose own final state can
+therefore never come.
+
+Exit codes of the bootstrap: :data:`EXIT_OK` for an orderly stop from Running, :data:`EXIT_SAFETY`
+when the run ended in or went through Safety, :data:`EXIT_MODEL` for a wrong model,
+:data:`EXIT_ERROR` when the hierarchy did not stop in time.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Iterable
+
+from rclpy.node import Node
+
+from itasc_core.communication.event_names import SAFETY_EVENT
+from itasc_core.communication.events import EventListener, events_topic
+
+__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_MODEL', 'EXIT_SAFETY']
+
+EXIT_OK = 0
+EXIT_ERROR = 1
+EXIT_MODEL = 2
+EXIT_SAFETY = 3
+
+
+@dataclass(frozen=True)
+class Fault:
+    """An event that reports a fault: what, who raised it, on which composite, and why."""
+
+    composite: str
+    name: str
+    source: str
+    detail: str
+    at: float
+
+    def __str__(self) -> str:
+        why = f': {self.detail}' if self.detail else ''
+        return f'{self.name} from {self.source}{why}'
+
+
+def _is_fault(name: str) -> bool:
+    return name == SAFETY_EVENT or name.endswith('_failed') or name.endswith('_refused')
+
+
+class RunOutcome:
+    """The faults of a run and the composites in Safety, from every composite's event topic."""
+
+    def __init__(self, node: Node, *, composites: dict[str, str]) -> None:
+        """``composites``: name -> namespace of every composite of the model."""
+        self._names = set(composites)
+        self.faults: list[Fault] = []
+        #: composites a Composer reported stopped in their place (their process had died)
+        self.stopped_on_behalf: set[str] = set()
+        #: composites seen in Safety, with the time each was first seen there
+        self.in_safety: dict[str, float] = {}
+        self._listener = EventListener(
+            node, topics=[events_topic(ns) for ns in composites.values()], immediate=True,
+            on_priority=self._on_event)
+
+    def _on_event(self, msg) -> None:
+        composite = msg.source.rsplit('/', 2)[-2] if msg.source.count('/') >= 2 else ''
+        if _is_fault(msg.name):
+            self.faults.append(Fault(composite, msg.name, msg.source, msg.detail, time.monotonic()))
+        elif msg.name.endswith('_stopped') and msg.source.endswith('/composer'):
+            child = msg.name.removeprefix('e_').removesuffix('_stopped')
+            if child in self._names:
+                self.stopped_on_behalf.add(child)
+
+    def saw_state(self, composite: str, state: str) -> None:
+        if state == 'Safety':
+            self.in_safety.setdefault(composite, time.monotonic())
+
+    @property
+    def went_through_safety(self) -> bool:
+        return bool(self.in_safety)
+
+    def reason(self) -> Fault | None:
+        """Why the run went to Safety: the first fault that says why, else the first fault."""
+        with_detail = [f for f in self.faults if f.detail]
+        return (with_detail or self.faults or [None])[0]
+
+    def safety_line(self) -> str:
+        first = min(self.in_safety, key=self.in_safety.get) if self.in_safety else '?'
+        reason = self.reason()
+        return f'SAFETY: {first} entered Safety <- {reason if reason else "no fault event was seen"}'
+
+    def warnings(self) -> Iterable[str]:
+        """Faults that did not end in Safety (e.g. a refused connection that was retried)."""
+        return [str(f) for f in self.faults if f.name != SAFETY_EVENT] if not self.in_safety else []
+
+    def exit_code(self) -> int:
+        return EXIT_SAFETY if self.went_through_safety else EXIT_OK
