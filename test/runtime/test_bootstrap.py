@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 from processes import Spawned, started_here
 
@@ -27,8 +28,19 @@ def state_sequences(stdout: str) -> dict[str, list[str]]:
 
 
 @pytest.fixture(scope='module')
-def single():
-    return run('pattern_demo', '--duration', '2')
+def single(tmp_path_factory):
+    bag = tmp_path_factory.mktemp('single') / 'run.mcap'
+    result = run('pattern_demo', '--duration', '2', '--record', str(bag))
+    result.bag = bag
+    return result
+
+
+def tracking_errors(bag) -> np.ndarray:
+    """The track task's error (setpoint - plant state), every tick of the recorded run."""
+    from rosbags.highlevel import AnyReader
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == '/app/program/track/controller/error']
+        return np.array([reader.deserialize(raw, c.msgtype).data[0] for c, _, raw in reader.messages(connections)])
 
 
 def test_pattern_demo_runs_and_stops_in_order_with_exit_0(single):
@@ -43,10 +55,17 @@ def test_pattern_demo_runs_and_stops_in_order_with_exit_0(single):
     assert 'app: stopped (duration)' in single.stdout
 
 
-def test_same_behaviour_with_one_process_per_composite(single):
-    per_composite = run('pattern_demo', '--duration', '2', '--deploy', 'per-composite')
+def test_same_behaviour_with_one_process_per_composite(single, tmp_path):
+    bag = tmp_path / 'per_composite.mcap'
+    per_composite = run('pattern_demo', '--duration', '2', '--deploy', 'per-composite', '--record', str(bag))
     assert per_composite.returncode == 0, per_composite.stderr
     assert state_sequences(per_composite.stdout) == state_sequences(single.stdout)
+    # the same computation: the plant tracks the sine as closely in both deployments
+    errors = {'single': tracking_errors(single.bag), 'per-composite': tracking_errors(bag)}
+    rms = {mode: float(np.sqrt(np.mean(e[len(e) // 4:] ** 2))) for mode, e in errors.items()}
+    assert all(len(e) > 1000 for e in errors.values()), {m: len(e) for m, e in errors.items()}
+    assert all(r < 0.15 for r in rms.values()), rms  # a sine of amplitude 1 tracked to within 15 %
+    assert max(rms.values()) < 1.5 * min(rms.values()), rms
 
 
 @pytest.mark.parametrize('deploy', ['single', 'per-composite'])
