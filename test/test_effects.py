@@ -7,6 +7,7 @@ holds the whole run."""
 from __future__ import annotations
 
 import os
+import time
 import re
 import signal
 import subprocess
@@ -164,7 +165,7 @@ def test_weights_and_priorities_switch_at_one_tick_with_continuous_motion(tmp_pa
 
 def test_infeasible_problem_leads_to_safety_with_its_reason_and_zero_velocity(tmp_path):
     mcap = tmp_path / 'run.mcap'
-    result = subprocess.run([*BOOTSTRAP, str(MODELS / 'infeasible.yaml'), '--duration', '2', '--record', str(mcap)],
+    result = subprocess.run([*BOOTSTRAP, str(MODELS / 'infeasible.yaml'), '--duration', '6', '--record', str(mcap)],
                             capture_output=True, text=True, timeout=180)
     assert result.returncode == 3, result.stdout[-3000:] + result.stderr[-3000:]
     reason = [line for line in result.stdout.splitlines() if line.startswith('SAFETY:')]
@@ -172,7 +173,8 @@ def test_infeasible_problem_leads_to_safety_with_its_reason_and_zero_velocity(tm
     assert re.search(r'from /infeasible/itasc/Solver: infeasible problem: the constraints of .*StayClose', reason[0])
     assert '--help' not in reason[0] and 'went through Safety' in result.stdout.splitlines()[-1]
     run = Recording(mcap)
-    check_safety_reached_everything(run, '/infeasible', ['itasc', 'itasc/AvoidObstacle', 'itasc/StayClose'])
+    check_safety_reached_everything(run, '/infeasible', ['itasc', 'itasc/ApproachObject', 'itasc/AvoidObstacle',
+                                                         'itasc/StayClose'])
     check_zero_velocity_at_every_tick_after_safety(run, '/infeasible', driver='/infeasible/Driver_panda/joint_state',
                                                    rate=100)
 
@@ -238,3 +240,21 @@ class _nothing:
 
     def __exit__(self, *exc):
         return False
+
+
+# -- a failure on the way to Running ends the start, in order, with the cause -----------------------
+
+def test_a_failure_before_running_stops_what_was_started_and_exits_2_with_the_cause(tmp_path):
+    mcap = tmp_path / 'run.mcap'
+    with Spawned([*BOOTSTRAP, str(MODELS / 'infeasible_at_start.yaml'), '--record', str(mcap)]) as app:
+        line = app.wait_for_line('SAFETY:', timeout=60)
+        assert 'infeasible problem' in line and '/infeasible_at_start/itasc/Solver' in line, line
+        start = time.monotonic()
+        assert app.finish(timeout=30) == 2, app.output()
+        assert time.monotonic() - start < 10.0
+    assert 'stopped (failed to start' in app.out
+    run = Recording(mcap)
+    for namespace in ('/infeasible_at_start', '/infeasible_at_start/itasc', '/infeasible_at_start/itasc/StayClose'):
+        states = run.states(namespace)
+        assert not any(s.startswith('Active.Run.Running') for s in states[:-1] if namespace == '/infeasible_at_start')
+        assert states[-1] == 'Active.Stop.Stopped.NotifyStopped', (namespace, states)

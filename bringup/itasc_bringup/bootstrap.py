@@ -6,8 +6,8 @@ the model's configurations), commands ``e_<root>_configure`` and lets the life-c
 hierarchy to Running. On ``--duration`` expiry, Ctrl-C or SIGTERM it raises ``e_<root>_stop`` and
 waits for the orderly Stop of the whole hierarchy, and until every composite's final state was
 seen (and recorded), then exits: 0 after an orderly stop from Running, 3 when the run ended in or
-went through Safety (the reason is printed on one line), 2 for a wrong model, 1 when the hierarchy
-did not stop in time.
+went through Safety (the reason is printed on one line), 2 for a wrong model or a failure before
+Running (what was started is stopped in order first), 1 when the hierarchy did not stop in time.
 
     bootstrap <app name or model path> [--duration SECONDS] [--record DIR|FILE.mcap]
               [--deploy single|per-composite] [--rate HZ]
@@ -33,7 +33,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog='bootstrap', description='Run an iTaSC application model.',
         epilog='exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time; '
-               '2 wrong model (nothing was started); 3 the run ended in or went through Safety')
+               '2 wrong model (nothing was started) or a failure before Running (what was started is stopped '
+               'in order); 3 the run ended in or went through Safety')
     parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     parser.add_argument('--duration', type=float, default=None,
                         help='stop SECONDS after the root reached Running (or Safety)')
@@ -130,11 +131,13 @@ def main(argv: list[str] | None = None) -> int:
             runtime.reap()
             status.show_safety()
             state = coordinator.state
-            if running_since is None and (state.startswith('Active.Run.Running') or state == 'Safety'):
+            if running_since is None and state.startswith('Active.Run.Running'):
                 running_since = time.monotonic()
             due = args.duration is not None and running_since is not None \
                 and time.monotonic() - running_since >= args.duration
-            if stop_sent_at is None and (stop_requested or due):
+            # a failure on the way to Running: stop what was started, in order
+            failed_start = running_since is None and outcome.went_through_safety
+            if stop_sent_at is None and (stop_requested or due or failed_start):
                 raiser.raise_event(f'e_{root.name}_stop')
                 stop_sent_at = last_stop = time.monotonic()
             elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - last_stop > 0.5:
@@ -152,9 +155,9 @@ def main(argv: list[str] | None = None) -> int:
         status.show_safety()
         for warning in outcome.warnings():
             print(f'warning: {warning}', file=sys.stderr)
-        how = 'signal ' + stop_requested[0] if stop_requested else 'duration'
+        how = 'signal ' + stop_requested[0] if stop_requested else 'duration' if running_since else 'failed to start'
         print(f'{root.name}: stopped ({how}{", went through Safety" if outcome.went_through_safety else ""})')
-        return outcome.exit_code()
+        return outcome.exit_code(reached_running=running_since is not None)
     finally:
         if recorder is not None:
             recorder.close()

@@ -8,7 +8,8 @@ composites a Composer stopped on behalf of a dead composite process, whose own f
 therefore never come.
 
 Exit codes of the bootstrap: :data:`EXIT_OK` for an orderly stop from Running, :data:`EXIT_SAFETY`
-when the run ended in or went through Safety, :data:`EXIT_MODEL` for a wrong model,
+when the run ended in or went through Safety, :data:`EXIT_NOT_STARTED` for a wrong model or a
+failure before the root reached Running (what was started is stopped in order first),
 :data:`EXIT_ERROR` when the hierarchy did not stop in time.
 """
 
@@ -23,11 +24,11 @@ from rclpy.node import Node
 from itasc_core.communication.event_names import SAFETY_EVENT
 from itasc_core.communication.events import EventListener, events_topic
 
-__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_MODEL', 'EXIT_SAFETY']
+__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY']
 
 EXIT_OK = 0
 EXIT_ERROR = 1
-EXIT_MODEL = 2
+EXIT_NOT_STARTED = 2
 EXIT_SAFETY = 3
 
 
@@ -47,7 +48,7 @@ class Fault:
 
 
 def _is_fault(name: str) -> bool:
-    return name == SAFETY_EVENT or name.endswith('_failed') or name.endswith('_refused')
+    return name == SAFETY_EVENT or name.endswith(('_failed', '_refused', '_timeout'))
 
 
 class RunOutcome:
@@ -96,5 +97,7 @@ class RunOutcome:
         """Faults that did not end in Safety (e.g. a refused connection that was retried)."""
         return [str(f) for f in self.faults if f.name != SAFETY_EVENT] if not self.in_safety else []
 
-    def exit_code(self) -> int:
-        return EXIT_SAFETY if self.went_through_safety else EXIT_OK
+    def exit_code(self, *, reached_running: bool) -> int:
+        if not self.went_through_safety:
+            return EXIT_OK  # also a stop requested before Running, in order
+        return EXIT_SAFETY if reached_running else EXIT_NOT_STARTED

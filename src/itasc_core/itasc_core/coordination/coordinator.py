@@ -9,6 +9,7 @@ qualified state on ``<composite namespace>/state`` on every change.
 
 from __future__ import annotations
 
+import time
 from typing import Iterable
 
 from itasc_msgs.msg import CoordinatorState
@@ -19,7 +20,13 @@ from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
 from .lifecycle import LifecycleFsm, RunningFsmSpec
 
-__all__ = ['Coordinator']
+__all__ = ['Coordinator', 'STARTUP_TIMEOUT']
+
+#: How long a state on the way to Running (Configure, Start, PreRunning) may wait for the events
+#: it needs before the composite goes to Safety (``e_<c>_timeout``): generous enough for a
+#: composite process to come up on a loaded machine, short enough that a start that cannot
+#: succeed ends in bounded time.
+STARTUP_TIMEOUT = 10.0
 
 
 class Coordinator(Entity):
@@ -33,6 +40,7 @@ class Coordinator(Entity):
         running: RunningFsmSpec | None = None,
         safety_to_parent: Iterable[str] = (),
         update_rate: float = 200.0,
+        startup_timeout: float = STARTUP_TIMEOUT,
     ) -> None:
         super().__init__('coordinator', composite=composite)
         self.is_root = composite.parent_namespace is None
@@ -55,6 +63,8 @@ class Coordinator(Entity):
             self, topics=[composite.parent_events_topic], on_priority=self._process_parent,
             accept=self._accepts_parent, on_gap=self._gap)
         self._notifications = {f'e_{composite.name}_{n}' for n in ('configured', 'started', 'running', 'stopped')}
+        self._startup_timeout = startup_timeout
+        self._entered_at = time.monotonic()
         self._update_timer = self.create_timer(1.0 / update_rate, self.update)
 
     @property
@@ -88,6 +98,11 @@ class Coordinator(Entity):
         if self._parent_events is not None:
             for msg in self._parent_events.drain():
                 self._process_parent(msg)
+        if self.fsm.starting_up and time.monotonic() - self._entered_at > self._startup_timeout:
+            waiting = self.fsm.waiting_for()
+            self._raiser.raise_event(f'e_{self.composite.name}_timeout', priority=True,
+                                     detail=f'{self.state} waited {self._startup_timeout:g} s for {waiting}')
+            self.fsm.process(f'e_{self.composite.name}_timeout')
 
     def _process(self, msg) -> None:
         if msg.name == f'e_{self.composite.name}_composed':
@@ -101,6 +116,7 @@ class Coordinator(Entity):
         raiser.raise_event(name, priority=is_priority(name))
 
     def _publish_state(self, state: str, previous: str, event: str) -> None:
+        self._entered_at = time.monotonic()
         self.history.append((state, event))
         msg = CoordinatorState()
         msg.stamp = self.get_clock().now().to_msg()

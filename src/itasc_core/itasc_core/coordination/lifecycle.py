@@ -13,9 +13,13 @@ States carry the paper's names, fully qualified with dots::
     Safety
 
 Safety is entered from anywhere in Active on ``e_emergency``, on a failure report of this
-composite's Composer, Configurator or Scheduler, or when the parent entered Safety (it commands
+composite's Composer, Configurator or Scheduler, when the parent entered Safety (it commands
 ``e_<child>_emergency`` to every child, so that no composite below one in Safety goes on
-running). Leaving it takes a reconfiguration (``e_<c>_configure``) or an orderly stop.
+running), or on ``e_<c>_timeout``: the Coordinator raises it when a state on the way to Running
+(DeployEntities, ConfigureEntities, ConnectEntities, Starting, PreRunning) waited longer than its
+timeout for events of its own entities or children that did not come (a
+child that never answers). Leaving it takes a reconfiguration (``e_<c>_configure``) or an
+orderly stop.
 
 Every transition waits for a *set* of events (∀ in Fig. 5). Event memory (the rFSM extension)
 records the events that arrived since the current state was entered and is cleared on every state
@@ -70,6 +74,10 @@ _ENTRY_EVENTS: dict[str, tuple[tuple[str, str], ...]] = {
     'NotifyStopped': (('parent', 'stopped'),),
     'Safety': (('own', 'safety'), ('children', 'emergency')),
 }
+
+
+#: The states on the way to Running that wait for the composite's own entities or children.
+_STARTUP_WAITS = frozenset({'DeployEntities', 'ConfigureEntities', 'ConnectEntities', 'Starting', 'PreRunning'})
 
 
 class _DottedState(NestedState):
@@ -287,6 +295,7 @@ class LifecycleFsm:
             add('Active', 'Safety', ev(failure))
         add('Active', 'Safety', SAFETY_EVENT)
         add('Active', 'Safety', ev('emergency'))  # the parent entered Safety: so does every child
+        add('Active', 'Safety', ev('timeout'))  # a start-up state waited too long (see STARTUP_TIMEOUT)
         add('Init', 'Active', ev('configure'))
         add('Safety', 'Active', ev('configure'))  # leaving Safety requires reconfiguration
         add('Safety', 'Active.Stop', ev('stop'))  # an orderly teardown is still possible
@@ -340,6 +349,22 @@ class LifecycleFsm:
         if state == 'Safety':
             for name in self._safety_to_parent:
                 self._raise(name, True)
+
+    def waiting_for(self) -> list[str]:
+        """The events the current state still waits for (those of its first transition out that
+        needs any), e.g. ``['e_track_configured']``."""
+        for t in self._transitions:
+            if t.requires and self.state.startswith(t.source) and t.source != 'Active':
+                missing = sorted(t.requires - self._memory)
+                if missing:
+                    return missing
+        return []
+
+    @property
+    def starting_up(self) -> bool:
+        """In a state on the way to Running that waits for this composite's own entities or its
+        children (not for a command of its parent, which may be waiting for a slower sibling)."""
+        return self.state.rsplit('.', 1)[-1] in _STARTUP_WAITS
 
     @property
     def running_substate(self) -> str | None:
