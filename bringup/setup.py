@@ -45,6 +45,7 @@ setup(
             'itasc-plot = itasc_bringup.plot:main',
             'itasc-graph = itasc_bringup.graph:main',
             'itasc-replay = itasc_bringup.replay:main',
+            'itasc-recover = itasc_bringup.recording.recover:main',
         ],
     },
 )

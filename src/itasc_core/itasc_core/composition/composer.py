@@ -95,7 +95,10 @@ class Composer(Entity):
         self._child_raisers: dict[str, EventRaiser] = {}
         self._watchdog = None
         self._dead: set[str] = set()
-        self._dead_stops: dict[str, str] = {}  # stop command -> dead child
+        self._child_stopped = {f'e_{child.name}_stopped': child.name for child in model.children}
+        self._child_stop = {f'e_{child.name}_stop': child.name for child in model.children}
+        self._stopped: set[str] = set()  # children that reported stopped: their processes end by themselves
+        self._stop_commanded: set[str] = set()
         c = context.name
         self._steps = {
             f'e_{c}_deploy': self.deploy,
@@ -112,15 +115,22 @@ class Composer(Entity):
 
     def _accepts(self, name: str) -> bool:
         return name in self._steps or (bool(self._pending) and name.endswith('_configured')) \
-            or name.startswith(f'e_{self.composite.name}_bind') or name in self._dead_stops
+            or name.startswith(f'e_{self.composite.name}_bind') \
+            or name in self._child_stopped or name in self._child_stop
 
     def _on_event(self, msg) -> None:
+        if msg.name in self._child_stopped:
+            self._stopped.add(self._child_stopped[msg.name])
+            return
+        if msg.name in self._child_stop:
+            child = self._child_stop[msg.name]
+            self._stop_commanded.add(child)
+            if child in self._dead:
+                self.raise_event(f'e_{child}_stopped', detail='its process had died')
+            return
         if msg.name == f'e_{self.composite.name}_bind':
             port, _, topic = msg.detail.partition('|')
             self.bind_export(port, topic)
-            return
-        if msg.name in self._dead_stops:
-            self.raise_event(f'e_{self._dead_stops[msg.name]}_stopped', detail='its process had died')
             return
         step = self._steps.get(msg.name)
         if step is not None:
@@ -326,10 +336,11 @@ class Composer(Entity):
             process = self.runtime.process(f'{self.composite.namespace}/{name}')
             if child is None and process is not None and process.poll() not in (None, 0) and name not in self._dead:
                 self._dead.add(name)
-                self._dead_stops[f'e_{name}_stop'] = name
                 detail = f'process of composite {name} died (exit code {process.returncode})'
                 self.get_logger().error(detail)
                 self.raise_event('e_emergency', priority=True, detail=detail)
+                if name in self._stop_commanded:  # it died stopping: it will never answer
+                    self.raise_event(f'e_{name}_stopped', detail='its process had died')
 
     # -- Stopped ----------------------------------------------------------------------------------------
 
@@ -340,8 +351,8 @@ class Composer(Entity):
             self.destroy_timer(self._watchdog)
             self._watchdog = None
         for name, child in self.children.items():
-            if child is None:
-                self.runtime.join(f'{self.composite.namespace}/{name}')
+            if child is None:  # a child that never started (stopped during deploy) is ended at once
+                self.runtime.join(f'{self.composite.namespace}/{name}', orderly=name in self._stopped)
             else:
                 retired += [child.coordinator, child.configurator, child]
         self.entities.clear()

@@ -92,11 +92,12 @@ class Runtime:
 
     def join(self, namespace: str, *, timeout: float = 10.0, orderly: bool = True) -> int | None:
         """Wait for a composite process to end (it ends by itself after NotifyStopped); past
-        ``timeout``, or at once if not ``orderly``, terminate it, and kill it if that fails."""
+        ``timeout``, or at once if not ``orderly``, kill it (it ignores SIGINT and SIGTERM, see
+        :mod:`.host`)."""
         process = self._processes.pop(namespace, None)
         if process is None:
             return None
-        for end in ((None, process.terminate, process.kill) if orderly else (process.terminate, process.kill)):
+        for end in ((None, process.kill) if orderly else (process.kill,)):
             if end is not None:
                 end()
             try:

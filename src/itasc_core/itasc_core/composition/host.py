@@ -3,8 +3,11 @@
 Started by the parent's Composer; does for its composite what the bootstrap does for the root:
 brings up its Coordinator, Composer and Configurator, then lets the life-cycle run. Its Scheduler
 is triggered over the composite's trigger topic. The process ends after its Coordinator notified
-the parent that it stopped, on SIGTERM, or when the parent process is gone: a composite
-whose parent died can never be stopped in order, and must not outlive it.
+the parent that it stopped, or when the parent process is gone: a composite whose parent died can
+never be stopped in order, and must not outlive it. SIGINT and SIGTERM are ignored: a terminal's
+Ctrl-C and a process manager's stop reach every process of the application, and the bootstrap
+answers them with an orderly Stop of the whole hierarchy, which this process must stay alive to
+take part in. Its parent ends it with SIGKILL when it cannot stop in order.
 """
 
 from __future__ import annotations
@@ -40,18 +43,15 @@ def main(argv: list[str] | None = None) -> int:
     context = CompositeContext(name=model.name, namespace=args.namespace, parent_namespace=args.parent_namespace)
 
     configure_dds()
-    stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    # Ctrl-C in a terminal reaches every process of the application; the bootstrap answers it with
-    # an orderly Stop of the whole hierarchy, which this process must stay alive to take part in.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
     runtime = Runtime(executor=executor, mode='per-composite')
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     stopped_at = None
     try:
-        while not stop:
+        while True:
             executor.spin_once(timeout_sec=0.05)
             runtime.reap()
             if os.getppid() != args.parent_pid:

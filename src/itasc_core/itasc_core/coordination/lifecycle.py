@@ -161,6 +161,7 @@ class LifecycleFsm:
         self._add_transitions()
         self._stopping = next(t for t in self._transitions if t.source == 'Active.Stop.Stopping')
         self._relevant = {SAFETY_EVENT}.union(*(t.requires for t in self._transitions))
+        self._relevant |= {self.ev('stopped', k) for k in self.children}
         self._machine = _Machine(
             model=self,
             states=self._states(),
@@ -322,7 +323,9 @@ class LifecycleFsm:
         add('Active.Configure', 'Active.Stop', ev('stop'))
         add('Active.Start', 'Active.Stop', ev('stop'))
         add('Active.Run', 'Active.Stop', ev('stop'))
-        add('Active.Stop.Stopping', 'Active.Stop.Stopped', *(ev('stopped', k) for k in kids))
+        # Stopping waits for the children that were commanded to configure (see _entry_actions): a
+        # stop during DeployEntities finds children that never started, with nothing to stop.
+        add('Active.Stop.Stopping', 'Active.Stop.Stopped')
         stopped = 'Active.Stop.Stopped'
         add(f'{stopped}.Disengage', f'{stopped}.CleanupComputation', ev('disengaged'))
         add(f'{stopped}.CleanupComputation', f'{stopped}.Cleanup', ev('computation_cleaned'))
@@ -343,6 +346,8 @@ class LifecycleFsm:
                 self._raise(self.ev(suffix), False)
             elif target == 'children':
                 for child in self.children:
+                    if suffix == 'configure':  # from now on it has something to stop
+                        self._stopping.requires = self._stopping.requires | {self.ev('stopped', child)}
                     self._raise(self.ev(suffix, child), False)
             else:
                 self._raise(self.ev(suffix), True)

@@ -1,0 +1,70 @@
+"""Ending a run, whatever state it is in (issue #8 "Exits"): SIGINT or SIGTERM during Configure,
+Start, Run, Stop or Safety stops the hierarchy in order and leaves a finished recording (exit 0,
+or 3 through Safety); SIGKILL of the bootstrap leaves a recording that ``itasc-recover`` makes
+readable, losing at most about the last second."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from processes import Spawned
+from rosbags.highlevel import AnyReader
+
+BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+RECOVER = [sys.executable, '-m', 'itasc_bringup.recording.recover']
+MODELS = Path(__file__).parent / 'data' / 'models'
+
+#: (where, command line after the bootstrap, the line to wait for before the signal, exit code)
+MOMENTS = {
+    # per-composite: the root waits in Configure while the program's process starts its own
+    'Configure': (['pattern_demo', '--deploy', 'per-composite'], '[state] program: Active.Configure.Configuring', 0),
+    'Start': (['pattern_demo', '--deploy', 'per-composite'], '[state] app: Active.Start.Starting', 0),
+    'Run': (['pattern_demo'], '[state] app: Active.Run.Running', 0),
+    'Stop': (['pattern_demo', '--duration', '0.5'], '[state] app: Active.Stop.Stopping', 0),
+    'Safety': ([str(MODELS / 'infeasible.yaml')], 'SAFETY:', 3),
+}
+
+
+def root_states(mcap: Path) -> list[str]:
+    with AnyReader([mcap]) as reader:
+        root = min((c for c in reader.connections if c.topic.endswith('/state')), key=lambda c: c.topic.count('/'))
+        return [reader.deserialize(raw, root.msgtype).state for _, _, raw in reader.messages([root])]
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('moment', list(MOMENTS))
+def test_a_signal_in_any_state_stops_in_order_with_a_finished_recording(moment, signum, tmp_path):
+    args, line, code = MOMENTS[moment]
+    mcap = tmp_path / 'run.mcap'
+    with Spawned([*BOOTSTRAP, *args, '--record', str(mcap)]) as app:
+        app.wait_for_line(line, timeout=120)
+        os.killpg(app.process.pid, signum)  # as a terminal's Ctrl-C, or a process manager's stop
+        assert app.finish(timeout=60) == code, app.output()
+    states = root_states(mcap)  # rosbags reads it: the file is finished
+    assert states[-1] == 'Active.Stop.Stopped.NotifyStopped', states[-4:]
+    assert 'Active.Stop.Stopping' in states
+
+
+def test_a_killed_bootstrap_leaves_a_recording_itasc_recover_makes_readable(tmp_path):
+    mcap = tmp_path / 'run.mcap'
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        time.sleep(3.0)  # a run of a few seconds, then the bootstrap dies without a word
+        killed_at = time.time()
+        app.process.kill()
+        app.process.wait()
+    with pytest.raises(Exception):
+        with AnyReader([mcap]) as reader:
+            list(reader.messages())
+    with Spawned([*RECOVER, str(mcap), '-o', str(tmp_path / 'recovered.mcap')]) as recover:
+        assert recover.finish(timeout=60) == 0, recover.output()
+    with AnyReader([tmp_path / 'recovered.mcap']) as reader:
+        log_times = [t for _, t, _ in reader.messages()]
+    assert len(log_times) > 1000
+    lost = killed_at - max(log_times) * 1e-9
+    assert lost < 1.5, f'the last {lost:.2f} s before the kill are lost'
