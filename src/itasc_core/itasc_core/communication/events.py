@@ -7,6 +7,7 @@ Two classes of events: *common* events are buffered and processed at the receive
 
 from __future__ import annotations
 
+import threading
 from collections import deque
 from typing import Callable, Iterable
 
@@ -32,6 +33,7 @@ class EventRaiser:
         self._source = source or node.get_fully_qualified_name()
         self._publisher = node.create_publisher(Event, topic, EVENT_QOS)
         self._seq = 0
+        self._lock = threading.Lock()
         self.topic = topic
 
     @property
@@ -39,15 +41,16 @@ class EventRaiser:
         return self._publisher
 
     def raise_event(self, name: str, *, priority: bool = False, detail: str = '') -> Event:
-        self._seq += 1
         msg = Event()
-        msg.stamp = self._node.get_clock().now().to_msg()
         msg.source = self._source
         msg.name = name
-        msg.seq = self._seq
         msg.priority = priority or is_priority(name)
         msg.detail = detail
-        self._publisher.publish(msg)
+        with self._lock:  # sequence numbers in publication order, whichever thread raises
+            self._seq += 1
+            msg.seq = self._seq
+            msg.stamp = self._node.get_clock().now().to_msg()
+            self._publisher.publish(msg)
         return msg
 
     def destroy(self) -> None:

@@ -22,6 +22,7 @@ A refused connection raises ``e_<c>_connection_refused`` naming both ports.
 
 from __future__ import annotations
 
+import threading
 import traceback
 
 from ..communication.events import EventListener, EventRaiser, events_topic
@@ -34,7 +35,7 @@ from ..coordination.lifecycle import RunningFsmSpec, RunningState, RunningTransi
 from ..coordination.scheduler import Scheduler
 from ..coordination.timer import Timer
 from ..entity import CompositeContext, Entity
-from .deployment import Runtime
+from .deployment import Runtime, exit_reason
 from .model import CompositeModel, ConnectionModel, EntityModel, MonitorModel
 from .registry import resolve_kind
 from .resolve import PortNotFound, port_of
@@ -93,12 +94,13 @@ class Composer(Entity):
         self.children: dict[str, Composer | None] = {}  # None: hosted in another process
         self._pending: list[ConnectionModel] = []
         self._child_raisers: dict[str, EventRaiser] = {}
-        self._watchdog = None
         self._dead: set[str] = set()
         self._child_stopped = {f'e_{child.name}_stopped': child.name for child in model.children}
         self._child_stop = {f'e_{child.name}_stop': child.name for child in model.children}
         self._stopped: set[str] = set()  # children that reported stopped: their processes end by themselves
         self._stop_commanded: set[str] = set()
+        self._ending: set[str] = set()  # children whose processes this Composer ends itself
+        self._lock = threading.Lock()  # the process watchers run in threads of their own
         c = context.name
         self._steps = {
             f'e_{c}_deploy': self.deploy,
@@ -124,8 +126,10 @@ class Composer(Entity):
             return
         if msg.name in self._child_stop:
             child = self._child_stop[msg.name]
-            self._stop_commanded.add(child)
-            if child in self._dead:
+            with self._lock:
+                self._stop_commanded.add(child)
+                dead = child in self._dead
+            if dead:
                 self.raise_event(f'e_{child}_stopped', detail='its process had died')
             return
         if msg.name == f'e_{self.composite.name}_bind':
@@ -198,12 +202,13 @@ class Composer(Entity):
         enabled = entity.name not in self.model.inactive
         if isinstance(entity, CompositeModel):
             context = self.composite.child(entity.name)
-            if self.runtime.mode == 'per-composite':
+            if self.runtime.separate(entity):  # per-composite, or on another host
                 self.runtime.spawn(model=entity, namespace=context.namespace,
                                    parent_namespace=self.composite.namespace)
                 self.children[entity.name] = None
-                if self._watchdog is None:
-                    self._watchdog = self.create_timer(0.1, self._watch_processes)
+                process = self.runtime.process(context.namespace)
+                threading.Thread(target=self._watch, args=(entity.name, process), daemon=True,
+                                 name=f'watch {entity.name}').start()
                 if scheduled:
                     self.scheduler.add_remote_child(entity.name, context.namespace, enabled=enabled)
             else:
@@ -328,28 +333,31 @@ class Composer(Entity):
                 remaining.append(connection)
         self._pending = remaining
 
-    def _watch_processes(self) -> None:
-        """A child composite whose process died is a fault of this composite (Safety); when the
-        Coordinator later commands it to stop, the Composer answers for it, so that this composite
-        can still stop in order."""
-        for name, child in self.children.items():
-            process = self.runtime.process(f'{self.composite.namespace}/{name}')
-            if child is None and process is not None and process.poll() not in (None, 0) and name not in self._dead:
-                self._dead.add(name)
-                detail = f'process of composite {name} died (exit code {process.returncode})'
-                self.get_logger().error(detail)
-                self.raise_event('e_emergency', priority=True, detail=detail)
-                if name in self._stop_commanded:  # it died stopping: it will never answer
-                    self.raise_event(f'e_{name}_stopped', detail='its process had died')
+    def _watch(self, name: str, process) -> None:
+        """Wait, in a thread of its own, for the process of child composite ``name`` to end: the
+        kernel wakes it the moment the process dies, so the fault is known at once, whatever this
+        process's executor is busy with. A death is a fault of this composite (Safety); when the
+        Coordinator commands the dead child to stop, the Composer answers for it, so that this
+        composite can still stop in order."""
+        code = process.wait()
+        with self._lock:
+            if code == 0 or name in self._ending or name in self._dead:
+                return  # it ended after it stopped, or because it was told to
+            self._dead.add(name)
+            stop_commanded = name in self._stop_commanded
+        detail = f'process of composite {name} {exit_reason(process)}'
+        self.raise_event('e_emergency', priority=True, detail=detail)
+        if stop_commanded:  # it died stopping: it will never answer
+            self.raise_event(f'e_{name}_stopped', detail='its process had died')
+        self.get_logger().error(detail)
 
     # -- Stopped ----------------------------------------------------------------------------------------
 
     def cleanup_computation(self) -> None:
         """Destroy the Functional Entities, child composites included (CleanupComputation)."""
         retired: list = list(self.entities.values())
-        if self._watchdog is not None:
-            self.destroy_timer(self._watchdog)
-            self._watchdog = None
+        with self._lock:
+            self._ending |= set(self.children)
         for name, child in self.children.items():
             if child is None:  # a child that never started (stopped during deploy) is ended at once
                 self.runtime.join(f'{self.composite.namespace}/{name}', orderly=name in self._stopped)

@@ -1,0 +1,117 @@
+"""Faults at run time, measured (issue #8): a composite process killed with SIGKILL is detected by
+its parent within 100 ms and the robot is held; an event storm across one composite for 10 s loses
+nothing, keeps each source's order and does not grow memory.
+
+The storm's rate: issue #8 asks for 10,000 events/s. A Python publisher reaches about 1,500-2,500
+events/s on this 2-core machine, because every co-located entity of the composite (Coordinator,
+Composer, Configurator, Scheduler, Monitors, recorder, console) holds a DDS reader of its own on the
+event topic, so each event is sent about seven times. The test runs at ``ITASC_STORM_RATE``
+(default 2,000/s) and checks the publisher kept that rate."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from processes import Spawned, started_here
+from ros_client import ros_node
+from rosbags.highlevel import AnyReader
+
+BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+
+
+def read(path: Path, *topics: str) -> dict[str, list]:
+    out: dict[str, list] = defaultdict(list)
+    with AnyReader([path]) as reader:
+        connections = [c for c in reader.connections if not topics or c.topic in topics]
+        for connection, log_time, raw in reader.messages(connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            msg._log = log_time * 1e-9
+            out[connection.topic].append(msg)
+    return out
+
+
+def seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def test_a_killed_composite_process_is_detected_within_100_ms_and_the_robot_held(tmp_path):
+    mcap = tmp_path / 'run.mcap'
+    task = '/approach_object/itasc/ApproachObject'
+    with Spawned([*BOOTSTRAP, 'approach_object', '--deploy', 'per-composite', '--record', str(mcap)]) as app:
+        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
+        time.sleep(1.0)  # the robot is moving
+        hosts = [pid for pid, line in started_here(command='itasc_core.composition.host').items()
+                 if f'--namespace {task} ' in line]
+        assert len(hosts) == 1, hosts
+        killed_at = time.time()
+        os.kill(hosts[0], signal.SIGKILL)
+        app.wait_for_line('SAFETY:', timeout=10)
+        time.sleep(1.0)  # a second of Safety
+        os.killpg(app.process.pid, signal.SIGINT)
+        assert app.finish(timeout=60) == 3, app.output()
+    run = read(mcap)
+    died = [m for m in run['/approach_object/itasc/events']
+            if m.name == 'e_emergency' and 'process of composite ApproachObject died' in m.detail]
+    assert len(died) == 1, [m.detail for m in run['/approach_object/itasc/events'] if m.name == 'e_emergency']
+    latency = seconds(died[0].stamp) - killed_at
+    assert 0 <= latency < 0.1, f'detected {latency * 1000:.1f} ms after the kill'
+    root = run['/approach_object/state']
+    safety = next(m._log for m in root if m.state == 'Safety')
+    stopping = next(m._log for m in root if m.state == 'Active.Stop.Stopping')
+    held = [m for m in run['/approach_object/Driver_panda/joint_state'] if safety + 0.05 < m._log < stopping]
+    assert len(held) > 50 and all(not np.any(m.velocity) for m in held)
+    assert all(np.array_equal(m.position, held[0].position) for m in held)
+
+
+def _rss_kb(pid: int) -> int:
+    with open(f'/proc/{pid}/status') as status:
+        return next(int(line.split()[1]) for line in status if line.startswith('VmRSS:'))
+
+
+def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
+    from itasc_core.communication.events import EventRaiser
+
+    mcap = tmp_path / 'storm.mcap'
+    rate, seconds_, sources = int(os.environ.get("ITASC_STORM_RATE", 2_000)), 10.0, 2
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        with ros_node('storm') as (node, executor):
+            raisers = [EventRaiser(node, topic='/app/program/events', source=f'/storm/source{i}')
+                       for i in range(sources)]
+            def matched() -> bool:  # every reader of the topic (Coordinator, ..., recorder) matched
+                readers = node.count_subscribers('/app/program/events')
+                return readers >= 4 and all(r.publisher.get_subscription_count() == readers for r in raisers)
+
+            deadline = time.monotonic() + 10
+            while not matched() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+            assert matched(), 'the composite\'s event readers did not all match the storm\'s publishers'
+            rss_before = _rss_kb(app.process.pid)
+            start, sent, rss_peak = time.monotonic(), 0, rss_before
+            total = int(rate * seconds_)
+            while sent < total:
+                due = min(total, int((time.monotonic() - start) * rate) + 1)
+                while sent < due:
+                    raisers[sent % sources].raise_event('e_storm', detail=str(sent))
+                    sent += 1
+                rss_peak = max(rss_peak, _rss_kb(app.process.pid))
+                time.sleep(0.002)
+            elapsed = time.monotonic() - start
+        time.sleep(1.0)
+        os.killpg(app.process.pid, signal.SIGINT)
+        assert app.finish(timeout=120) == 0, app.output()
+    assert elapsed < seconds_ * 1.2, f'could only send {total} events in {elapsed:.1f} s'
+    assert 'lost events' not in app.err, app.err[-2000:]
+    events = [m for m in read(mcap, '/app/program/events')['/app/program/events'] if m.name == 'e_storm']
+    assert len(events) == total, f'{total - len(events)} of {total} events lost'
+    for i in range(sources):
+        seqs = [m.seq for m in events if m.source == f'/storm/source{i}']
+        assert seqs == list(range(1, len(seqs) + 1)), f'source {i}: order not kept'
+    growth_mb = (rss_peak - rss_before) / 1024
+    assert growth_mb < 200, f'the bootstrap grew by {growth_mb:.0f} MB during the storm'
