@@ -295,6 +295,40 @@ def test_simulated_robot_respects_velocity_and_position_limits(world):
     assert state.position[:3] == pytest.approx(PANDA_READY[:3])
 
 
+def test_simulated_robot_moves_within_the_application_models_joint_limits(world, tmp_path):
+    """The model's limits override the URDF's for the simulated robot too, not only for the Solver:
+    panda_joint4 stops at the model's -1.0 (the URDF's upper limit is -0.0698) at the model's 0.5
+    rad/s."""
+    from itasc_bringup.apps import load_composition
+    app = tmp_path / 'limits.yaml'
+    config = Path(__file__).resolve().parents[2] / 'config'
+    app.write_text(f'''
+application:
+  name: limits
+  rate: 100
+  program:
+    robots:
+      - name: panda
+        urdf: {config / 'robots' / 'panda.urdf'}
+        frames: [{{name: tcp, link: panda_hand_tcp}}]
+        limits: {{panda_joint4: {{upper: -1.0, velocity: 0.5}}}}
+    tasks:
+      - {{name: Hold, type: joint, joints: [panda_joint1]}}
+  drivers:
+    - robot: panda
+      kind: simulated
+      initial: {{panda_joint4: -1.5}}
+''')
+    parameters = load_composition(str(app)).entity('Driver_panda').parameters
+    driver = world.entity(SimulatedRobot, 'Driver_panda', **parameters)
+    driver.inputs['command'].deliver(JointState(name=['panda_joint4'], velocity=[50.0]), 'x')
+    for k in range(15):  # 1.4 s at 0.5 rad/s from -1.5: beyond the model's -1.0
+        driver.update(k * 0.1)
+    state = driver.outputs['joint_state'].last
+    assert state.velocity[3] == pytest.approx(0.5)
+    assert state.position[3] == pytest.approx(-1.0)
+
+
 def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
     sensor = world.entity(PoseSensor, 'Sensor_cup', object='cup', topic=f'{world.ctx.namespace}/cup_pose')
     scene = world.entity(SceneEntity, 'Scene', robots=[flow({'name': 'panda', 'urdf': URDF})],
