@@ -6,7 +6,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={package_name: ['communication/fastdds.xml', 'communication/fastdds_localhost.xml']},
+    package_data={package_name: ['communication/fastdds.xml', 'communication/fastdds_localhost.xml',
+                                'communication/fastdds_peers.xml.in']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

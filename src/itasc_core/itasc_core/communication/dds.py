@@ -20,22 +20,82 @@ announcements are sometimes missed by a peer that is busy starting (seen in abou
 where the bootstrap and two composite processes start at once); until the next periodic
 announcement that peer cannot see the participant's topics at all, so a 3 s period left a short
 run's status and recording without a whole composite.
+
+Several machines (README "Several machines"): with ``ITASC_DDS_PEERS`` set to the IPv4 addresses
+of every machine of the application (comma-separated, the same list on each), a profile generated
+from :data:`PEERS_TEMPLATE` replaces both: UDPv4 only, no multicast, the SPDP announcements sent
+by unicast to the first :data:`PEERS_RANGE` participant ports of every peer address (each process
+of ours is a participant). ``ITASC_DDS_INTERFACES`` (optional) limits the addresses of this
+machine that DDS uses (Fast DDS's interface whitelist; loopback is then left out, so a peer never
+receives a 127.0.0.1 locator that would point back at itself). All machines need the same
+``ROS_DOMAIN_ID``.
 """
 
 from __future__ import annotations
 
+import hashlib
+import ipaddress
 import os
+import re
+import tempfile
 from pathlib import Path
 
-__all__ = ['configure_dds', 'PROFILE', 'LOCALHOST_PROFILE']
+__all__ = ['configure_dds', 'peers_profile', 'DdsSettingsError', 'PROFILE', 'LOCALHOST_PROFILE',
+           'PEERS_TEMPLATE', 'PEERS_RANGE']
 
 PROFILE = Path(__file__).with_name('fastdds.xml')
 LOCALHOST_PROFILE = Path(__file__).with_name('fastdds_localhost.xml')
+PEERS_TEMPLATE = Path(__file__).with_name('fastdds_peers.xml.in')
+#: Participant ports per peer address that announcements go to (Fast DDS's default is 4).
+PEERS_RANGE = 32
+
+
+class DdsSettingsError(ValueError):
+    """An ``ITASC_DDS_*`` variable that is not a list of IPv4 addresses."""
+
+
+def _addresses(variable: str) -> list[str]:
+    text = os.environ.get(variable, '')
+    addresses = [item for item in re.split(r'[\s,;]+', text) if item]
+    for address in addresses:
+        try:
+            ipaddress.IPv4Address(address)
+        except ValueError:
+            raise DdsSettingsError(f'{variable}={text!r}: {address!r} is not an IPv4 address') from None
+    return addresses
+
+
+def _locators(addresses: list[str]) -> str:
+    return ''.join(f'<locator><udpv4><address>{a}</address></udpv4></locator>' for a in addresses)
+
+
+def peers_profile(*, peers: list[str], interfaces: list[str]) -> Path:
+    """The generated Fast DDS profile for ``peers`` (and the ``interfaces`` whitelist): a file
+    named after its content in the temporary directory, written once."""
+    whitelist = (f'<interfaceWhiteList>{"".join(f"<address>{a}</address>" for a in interfaces)}'
+                 '</interfaceWhiteList>') if interfaces else ''
+    text = PEERS_TEMPLATE.read_text().format(range=PEERS_RANGE, whitelist=whitelist, peers=_locators(peers))
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    path = Path(tempfile.gettempdir()) / f'itasc_fastdds_peers_{digest}.xml'
+    if not path.exists():
+        partial = path.with_suffix(f'.{os.getpid()}.tmp')
+        partial.write_text(text)
+        partial.replace(path)
+    return path
 
 
 def configure_dds() -> None:
-    """Select our Fast DDS profile in this process's environment (inherited by its children)."""
+    """Select our Fast DDS profile in this process's environment (inherited by its children).
+
+    Raises :class:`DdsSettingsError` for an ``ITASC_DDS_PEERS``/``ITASC_DDS_INTERFACES`` that is
+    not a list of IPv4 addresses."""
     if os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
+        return
+    peers = _addresses('ITASC_DDS_PEERS')
+    if peers:
+        profile = peers_profile(peers=peers, interfaces=_addresses('ITASC_DDS_INTERFACES'))
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'
+        os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(profile)
         return
     if os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '').upper() == 'LOCALHOST':
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'

@@ -35,7 +35,7 @@ from ..coordination.lifecycle import RunningFsmSpec, RunningState, RunningTransi
 from ..coordination.scheduler import Scheduler
 from ..coordination.timer import Timer
 from ..entity import CompositeContext, Entity
-from .deployment import Runtime
+from .deployment import Runtime, exit_reason
 from .model import CompositeModel, ConnectionModel, EntityModel, MonitorModel
 from .registry import resolve_kind
 from .resolve import PortNotFound, port_of
@@ -202,7 +202,7 @@ class Composer(Entity):
         enabled = entity.name not in self.model.inactive
         if isinstance(entity, CompositeModel):
             context = self.composite.child(entity.name)
-            if self.runtime.mode == 'per-composite':
+            if self.runtime.separate(entity):  # per-composite, or on another host
                 self.runtime.spawn(model=entity, namespace=context.namespace,
                                    parent_namespace=self.composite.namespace)
                 self.children[entity.name] = None
@@ -345,7 +345,7 @@ class Composer(Entity):
                 return  # it ended after it stopped, or because it was told to
             self._dead.add(name)
             stop_commanded = name in self._stop_commanded
-        detail = f'process of composite {name} died (exit code {code})'
+        detail = f'process of composite {name} {exit_reason(process)}'
         self.raise_event('e_emergency', priority=True, detail=detail)
         if stop_commanded:  # it died stopping: it will never answer
             self.raise_event(f'e_{name}_stopped', detail='its process had died')

@@ -4,7 +4,10 @@ One :class:`Runtime` per OS process holds the executor all of the process's enti
 to. With ``--deploy single`` every composite lives in the bootstrap's process; with
 ``--deploy per-composite`` every child composite gets a process of its own, started by its
 parent's Composer (:mod:`.host`), and everything it exchanges with its parent travels over DDS.
-Nodes are destroyed between executor spins, never from inside a callback.
+A composite placed on another host (``host:`` in the model) gets a process of its own there,
+whatever the mode: the host agent of that name starts it (:mod:`.host_agent`, :mod:`.remote`).
+This process's host is ``host`` (default ``$ITASC_HOST``; unset: composites placed on any host run
+elsewhere). Nodes are destroyed between executor spins, never from inside a callback.
 """
 
 from __future__ import annotations
@@ -20,8 +23,9 @@ from typing import Iterable, Literal
 from rclpy.node import Node
 
 from .model import CompositeModel
+from .remote import HostClient, RemoteProcess
 
-__all__ = ['Runtime', 'DeployMode', 'make_executor', 'end_process_within']
+__all__ = ['Runtime', 'DeployMode', 'make_executor', 'end_process_within', 'exit_reason']
 
 DeployMode = Literal['single', 'per-composite']
 
@@ -50,15 +54,24 @@ def end_process_within(seconds: float = 20.0) -> None:
     faulthandler.dump_traceback_later(seconds, exit=True)
 
 
+def exit_reason(process: subprocess.Popen | RemoteProcess) -> str:
+    """How a composite process that ended by itself ended, in words."""
+    if isinstance(process, RemoteProcess):
+        return process.failure
+    return f'died (exit code {process.returncode})'
+
+
 class Runtime:
     """The executor of this process, the nodes on it and the composite processes it started."""
 
-    def __init__(self, *, executor, mode: DeployMode = 'single') -> None:
+    def __init__(self, *, executor, mode: DeployMode = 'single', host: str | None = None) -> None:
         self.executor = executor
         self.mode: DeployMode = mode
+        self.host = host or os.environ.get('ITASC_HOST') or None
         self._retired: list[Node] = []
-        self._processes: dict[str, subprocess.Popen] = {}
+        self._processes: dict[str, subprocess.Popen | RemoteProcess] = {}
         self._spec_files: list[str] = []
+        self._hosts: HostClient | None = None
 
     def add(self, *nodes: Node) -> None:
         for node in nodes:
@@ -76,8 +89,23 @@ class Runtime:
             node.destroy_node()
         return len(nodes)
 
+    def elsewhere(self, model: CompositeModel) -> bool:
+        """Whether child composite ``model`` is placed on another host than this process's."""
+        return model.host is not None and model.host != self.host
+
+    def separate(self, model: CompositeModel) -> bool:
+        """Whether child composite ``model`` runs in a process of its own (see :meth:`spawn`)."""
+        return self.mode == 'per-composite' or self.elsewhere(model)
+
     def spawn(self, *, model: CompositeModel, namespace: str, parent_namespace: str) -> None:
-        """Start a process hosting the composite ``model`` (``--deploy per-composite``)."""
+        """Start a process hosting the composite ``model``: here, or through the agent of its host."""
+        if self.elsewhere(model):
+            if self._hosts is None:
+                self._hosts = HostClient(context=self.executor.context)
+            self._processes[namespace] = self._hosts.start(
+                host=model.host, spec=model.model_dump(by_alias=True, exclude_defaults=True),
+                namespace=namespace, parent_namespace=parent_namespace)
+            return
         fd, path = tempfile.mkstemp(prefix=f'itasc_{model.name}_', suffix='.json')
         with os.fdopen(fd, 'w') as out:
             json.dump(model.model_dump(by_alias=True, exclude_defaults=True), out)
@@ -87,7 +115,7 @@ class Runtime:
                    '--parent-pid', str(os.getpid())]
         self._processes[namespace] = subprocess.Popen(command)
 
-    def process(self, namespace: str) -> subprocess.Popen | None:
+    def process(self, namespace: str) -> subprocess.Popen | RemoteProcess | None:
         return self._processes.get(namespace)
 
     def join(self, namespace: str, *, timeout: float = 10.0, orderly: bool = True) -> int | None:
@@ -111,6 +139,9 @@ class Runtime:
         stopped in order any more (this process ends on a signal, or its parent is gone)."""
         for namespace in list(self._processes):
             self.join(namespace, timeout=5.0, orderly=orderly)
+        if self._hosts is not None:
+            self._hosts.close()
+            self._hosts = None
         for path in self._spec_files:
             try:
                 os.unlink(path)

@@ -7,7 +7,7 @@ model of the pattern itself can be written in it directly (``config/apps/pattern
 A composite lists its Functional Entities (any of which may be a composite, to any depth), the
 connections between their ports, the ports it exports to its parent, its named configurations
 (Configurator), its monitors, its composition steps (Composer), its Running sub-FSM and what it
-raises to its parent when it enters Safety (Coordinator).
+raises to its parent when it enters Safety (Coordinator), and the host it runs on (§4.4).
 """
 
 from __future__ import annotations
@@ -139,6 +139,10 @@ class CompositeModel(_Strict):
     composition_steps: dict[str, CompositionStepModel] = Field(default_factory=dict)
     #: Root only: the rate of the Timer that triggers the root Scheduler.
     rate: float | None = Field(default=None, gt=0)
+    #: The machine this composite runs on: the host agent of that name starts it (see
+    #: ``itasc_core.composition.host_agent``). None: where its parent runs. Ignored on the root,
+    #: which runs where the bootstrap runs.
+    host: str | None = Field(default=None, pattern=_NAME)
 
     @model_validator(mode='after')
     def _consistent(self) -> 'CompositeModel':
