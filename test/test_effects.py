@@ -110,7 +110,7 @@ def test_approach_object_high_accuracy_control_changes_the_task_controller(tmp_p
 def test_pattern_demo_switch_changes_the_track_gain(tmp_path):
     mcap = tmp_path / 'run.mcap'
     track = '/app/program/track'
-    with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
+    with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--record', str(mcap)]) as app:
         app.wait_for_line('[state] program: Active.Run.Running.precise', timeout=120)
         app.wait_for_line('[status]', timeout=30)  # the switch has been applied meanwhile
         kp = get_parameter(f'{track}/controller', 'kp')

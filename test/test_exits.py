@@ -22,7 +22,7 @@ MODELS = Path(__file__).parent / 'data' / 'models'
 #: (where, command line after the bootstrap, the line to wait for before the signal, exit code)
 MOMENTS = {
     # per-composite: the root waits in Configure while the program's process starts its own
-    'Configure': (['pattern_demo', '--deploy', 'per-composite'], '[state] program: Active.Configure.Configuring', 0),
+    'Configure': (['-v', 'pattern_demo', '--deploy', 'per-composite'], '[state] program: Active.Configure.Configuring', 0),
     'Start': (['pattern_demo', '--deploy', 'per-composite'], '[state] app: Active.Start.Starting', 0),
     'Run': (['pattern_demo'], '[state] app: Active.Run.Running', 0),
     'Stop': (['pattern_demo', '--duration', '0.5'], '[state] app: Active.Stop.Stopping', 0),

@@ -1,3 +1,4 @@
+# PYTHON_ARGCOMPLETE_OK
 """The bootstrap (paper §6.1): the root Composer's owner, run as ``ros2 run itasc_bringup bootstrap``.
 
 It validates the application model (a wrong model exits 2 before anything starts), brings up the
@@ -9,13 +10,18 @@ seen (and recorded), then exits: 0 after an orderly stop from Running, 3 when th
 went through Safety (the reason is printed on one line), 2 for a wrong model or a failure before
 Running (what was started is stopped in order first), 1 when the hierarchy did not stop in time.
 
+What it prints is :mod:`itasc_bringup.console`'s: a live view on a terminal, plain lines
+otherwise (``-v`` for every transition), the full trace in the ROS log directory, and a summary
+at the end (``--summary-json FILE`` for scripts).
+
     bootstrap <app name or model path> [--duration SECONDS] [--record DIR|FILE.mcap]
-              [--deploy single|per-composite] [--rate HZ]
+              [--deploy single|per-composite] [--rate HZ] [-v] [--summary-json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import pathlib
 import signal
 import sys
 import time
@@ -29,25 +35,55 @@ STOP_TIMEOUT = 20.0
 FINAL_STATES_TIMEOUT = 3.0
 
 
+EXAMPLES = """\
+examples:
+  bootstrap approach_object --duration 20                     # the paper's running example, 20 s
+  bootstrap approach_object --duration 10 --record out/run    # record a rosbag2 bag, then: itasc-plot out/run
+  bootstrap pattern_demo --deploy per-composite -v            # a process per composite, every transition
+"""
+
+
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    from .apps import known_apps
+    apps = known_apps()
     parser = argparse.ArgumentParser(
         prog='bootstrap', description='Run an iTaSC application model.',
-        epilog='exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time; '
-               '2 wrong model (nothing was started) or a failure before Running (what was started is stopped '
-               'in order); 3 the run ended in or went through Safety')
-    parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=f'applications: {", ".join(apps)}\n\n{EXAMPLES}\n'
+               'exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time;\n'
+               '  2 wrong model (nothing was started) or a failure before Running (what was started\n'
+               '  is stopped in order); 3 the run ended in or went through Safety\n\n'
+               'shell completion: eval "$(register-python-argcomplete bootstrap)"')
+    app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
+    app.completer = _app_completer(apps)
     parser.add_argument('--duration', type=float, default=None,
                         help='stop SECONDS after the root reached Running (or Safety)')
     parser.add_argument('--record', metavar='DIR|FILE.mcap', default=None,
                         help='record the run: a rosbag2 bag folder DIR (metadata.yaml + MCAP), or one FILE.mcap')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--rate', type=float, default=None, help='override the Timer rate (Hz)')
+    parser.add_argument('-v', '--verbose', action='store_true',
+                        help='print every transition of every composite ([state] lines) and [status] lines')
+    parser.add_argument('--summary-json', metavar='FILE', type=pathlib.Path, default=None,
+                        help='also write the end-of-run summary as JSON to FILE')
+    import argcomplete
+    argcomplete.autocomplete(parser)
     args = parser.parse_args(argv)
     if args.duration is not None and args.duration <= 0:
         parser.error('--duration must be > 0')
     if args.rate is not None and args.rate <= 0:
         parser.error('--rate must be > 0')
+    if args.summary_json is not None and not args.summary_json.parent.is_dir():
+        parser.error(f'--summary-json: no directory {args.summary_json.parent}')
     return args
+
+
+def _app_completer(apps: list[str]):
+    """Completes the application names, and model files as paths."""
+    from argcomplete.completers import FilesCompleter
+
+    files = FilesCompleter(allowednames=('yaml', 'yml'))
+    return lambda prefix, **kwargs: [a for a in apps if a.startswith(prefix)] + list(files(prefix, **kwargs))
 
 
 def load(app: str, rate: float | None):
@@ -79,8 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     from itasc_core.composition.model import walk
     from itasc_core.entity import CompositeContext
 
+    from .console import RunFacts, TraceFile, Watch, task_specs
     from .outcome import EXIT_ERROR, RunOutcome
-    from .status import StatusDisplay
 
     stop_requested: list[str] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -94,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     executor.add_node(node)
     recorder = None
     composer = None
+    console = None
+    trace = TraceFile(app=model.name)
     try:
         if args.record:
             from itasc_core.communication.qos import EVENT_QOS, STATE_QOS
@@ -110,26 +148,43 @@ def main(argv: list[str] | None = None) -> int:
                 recorder.record(f'{path}/state', 'itasc_msgs/msg/CoordinatorState', qos=STATE_QOS)
             recorder.record_model(model, namespace=root.namespace)  # the data flow from the first tick
             executor.add_node(recorder)
+        composites = {m.name: path for path, m in walk(model)}
+        outcome = RunOutcome(node, composites=composites)
+        facts = RunFacts(composites=composites, tasks=task_specs(model, namespace=root.namespace))
+        running_since: float | None = None
+        ran_for: float | None = None  # Running, until the stop was commanded
+        console = _make_console(args, facts=facts, outcome=outcome, root=root.name, trace=trace,
+                                target_rate=model.rate or 0.0,
+                                rate=lambda: composer.timer.achieved_rate() if composer and composer.timer else 0.0,
+                                elapsed=lambda: None if running_since is None else ran_for or time.monotonic() - running_since)
+
+        def on_transition(transition) -> None:
+            outcome.saw_state(transition.composite, transition.state)
+            console.on_transition(transition)
+
+        from .recording.topics import data_flow_topics
+        solver_topics = [t for t, kind in data_flow_topics(model, namespace=root.namespace).items()
+                         if kind == 'itasc_msgs/msg/SolverStatus']
+        watch = Watch(node, facts=facts, solver_topics=solver_topics, on_transition=on_transition)
+
         raiser = EventRaiser(node, topic=root.events_topic)
         composer = bring_up(model=model, context=root, runtime=runtime)
         coordinator = composer.coordinator
-        composites = {m.name: path for path, m in walk(model)}
         from .visualization import start_visualization  # robot_description, TF, markers, /diagnostics
         start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
-        outcome = RunOutcome(node, composites=composites)
-        status = StatusDisplay(node, composites=composites, outcome=outcome,
-                               rate=lambda: composer.timer.achieved_rate() if composer.timer else 0.0)
 
         while raiser.publisher.get_subscription_count() < 3 and not stop_requested:
             executor.spin_once(timeout_sec=0.01)  # coordinator, composer, configurator listen
         raiser.raise_event(f'e_{root.name}_configure')
 
-        running_since = None
         stop_sent_at = last_stop = None
+        code = None
         while True:
             executor.spin_once(timeout_sec=0.02)
             runtime.reap()
-            status.show_safety()
+            watch.poll_timer(composer.timer)
+            console.show_safety()
+            console.refresh()
             state = coordinator.state
             if running_since is None and state.startswith('Active.Run.Running'):
                 running_since = time.monotonic()
@@ -140,24 +195,37 @@ def main(argv: list[str] | None = None) -> int:
             if stop_sent_at is None and (stop_requested or due or failed_start):
                 raiser.raise_event(f'e_{root.name}_stop')
                 stop_sent_at = last_stop = time.monotonic()
+                ran_for = time.monotonic() - running_since if running_since is not None else None
             elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - last_stop > 0.5:
                 # a fault during the Stop put the root in Safety: the stop still stands (Safety ->
                 # Stop), or the hierarchy would wait in Safety for a command already given
                 raiser.raise_event(f'e_{root.name}_stop')
                 last_stop = time.monotonic()
             if state.endswith('NotifyStopped'):
-                _await_final_states(executor, status=status, outcome=outcome, recorder=recorder,
+                _await_final_states(executor, facts=facts, outcome=outcome, recorder=recorder,
                                     composites=composites)
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
-                return EXIT_ERROR
-        status.show_safety()
-        for warning in outcome.warnings():
+                code = EXIT_ERROR
+                break
+        console.show_safety()
+        warnings = list(outcome.warnings())
+        for warning in warnings:
+            trace.write(f'warning: {warning}')
             print(f'warning: {warning}', file=sys.stderr)
         how = 'signal ' + stop_requested[0] if stop_requested else 'duration' if running_since else 'failed to start'
-        print(f'{root.name}: stopped ({how}{", went through Safety" if outcome.went_through_safety else ""})')
-        return outcome.exit_code(reached_running=running_since is not None)
+        if code == EXIT_ERROR:
+            how = 'did not stop in time'
+        elif outcome.went_through_safety:
+            how += ', went through Safety'
+        code = outcome.exit_code(reached_running=running_since is not None) if code is None else code
+        _finish(console, args, facts=facts, app=root.name, how=how, exit_code=code, trace=trace,
+                safety=outcome.safety_line() if outcome.went_through_safety else None,
+                running_for=ran_for,
+                target_rate=model.rate or 0.0, recording=args.record if recorder is not None else None,
+                warnings=warnings)
+        return code
     finally:
         if recorder is not None:
             recorder.close()
@@ -171,16 +239,17 @@ def main(argv: list[str] | None = None) -> int:
                 entity.destroy_node()
         node.destroy_node()
         rclpy.try_shutdown()
+        trace.close()
 
 
-def _await_final_states(executor, *, status, outcome, recorder, composites: dict[str, str]) -> None:
-    """Spin until the final state of every composite was seen by the status and written by the
+def _await_final_states(executor, *, facts, outcome, recorder, composites: dict[str, str]) -> None:
+    """Spin until the final state of every composite was seen by the console and written by the
     recorder, except those a Composer stopped on behalf of a dead process; at most
     :data:`FINAL_STATES_TIMEOUT` s."""
     def final(name: str) -> bool:
         if name in outcome.stopped_on_behalf:
             return True
-        if not status.states[name].endswith('NotifyStopped'):
+        if not facts.states[name].endswith('NotifyStopped'):
             return False
         if recorder is None:
             return True
@@ -191,6 +260,26 @@ def _await_final_states(executor, *, status, outcome, recorder, composites: dict
     while not all(map(final, composites)) and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.01)
 
+
+def _make_console(args: argparse.Namespace, **kwargs):
+    """The live view on a terminal, plain lines otherwise."""
+    from .console import LiveConsole, PlainConsole
+    if sys.stdout.isatty():
+        return LiveConsole(duration=args.duration, verbose=args.verbose, **kwargs)
+    kwargs.pop('target_rate'), kwargs.pop('elapsed')
+    return PlainConsole(verbose=args.verbose, **kwargs)
+
+
+def _finish(console, args: argparse.Namespace, *, facts, trace, **summary) -> None:
+    """The summary: on the console, into the trace, and with ``--summary-json`` into its file."""
+    from .console import build_summary, summary_lines, write_summary_json
+    data = build_summary(facts, trace=str(trace.path) if trace.path else None, **summary)
+    console.finish(summary_lines(data))
+    if args.summary_json is not None:
+        try:
+            write_summary_json(data, args.summary_json)
+        except OSError as err:
+            print(f'error: --summary-json: {err}', file=sys.stderr)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -8,7 +8,9 @@ every type, ours included, from the schemas stored in the file: no ROS install i
 Writes into ``DIR`` (default ``<stem>_plots/`` next to the file):
 
 * ``task_errors.png`` - every ``itasc_msgs/msg/TaskState`` task: ``error_norm`` of all tasks on
-  one axis, then the error components of each task (grey where the task was inactive);
+  one axis, then per task its error components (grey where the task was inactive) or, for an
+  inequality Task, its distance against ``d_min``/``d_max`` shaded where the bound was active
+  (:mod:`itasc_bringup.task_plot`); every panel marks the Running sub-FSM transitions;
 * ``joints_<topic>.png`` per ``sensor_msgs/msg/JointState`` topic - position and velocity of each
   joint. Limits are taken from the URDF given with ``--urdf`` (``<limit lower upper velocity>`` of
   each joint, matched by name) and drawn as dashed red lines; without ``--urdf`` no limits are
@@ -19,7 +21,8 @@ Writes into ``DIR`` (default ``<stem>_plots/`` next to the file):
 * ``scene_<n>_<state>.png``, ``scene_end.png``, ``scene.gif`` - the 3-D scene (robot links, object
   frames, targets, obstacles, distance constraints with ``d_min``) at each transition of the
   Running sub-FSM, at the end, and animated, when the run recorded TF and markers
-  (:mod:`itasc_bringup.visualization.picture`).
+  (:mod:`itasc_bringup.visualization.picture`);
+* ``index.html`` - one overview page with all of them.
 
 Time is the recording's receive time, in seconds from the first message.
 """
@@ -46,6 +49,7 @@ OTHER_COLOUR = '#d9d9d9'
 TASK_STATE = 'itasc_msgs/msg/TaskState'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 COORDINATOR_STATE = 'itasc_msgs/msg/CoordinatorState'
+CONSTRAINT_ROWS = 'itasc_msgs/msg/ConstraintRows'
 
 
 class PlotError(Exception):
@@ -59,7 +63,7 @@ def read_run(path: pathlib.Path) -> tuple[Series, dict[str, str], float]:
     """``({topic: [(t, msg), ...]}, {topic: type}, duration)`` for the topics we plot."""
     from rosbags.highlevel import AnyReader, AnyReaderError
 
-    wanted = {TASK_STATE, JOINT_STATE, COORDINATOR_STATE}
+    wanted = {TASK_STATE, JOINT_STATE, COORDINATOR_STATE, CONSTRAINT_ROWS}
     series: dict[str, list[tuple[float, Any]]] = defaultdict(list)
     try:
         with AnyReader([path]) as reader:
@@ -112,6 +116,8 @@ def plot_task_errors(series: dict, types: dict, out: pathlib.Path) -> pathlib.Pa
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from .task_plot import draw_marks, inequality_traces, sub_fsm_marks
+
     tasks: dict[str, list[tuple[float, Any]]] = defaultdict(list)
     for topic, items in series.items():
         if types[topic] == TASK_STATE:
@@ -119,33 +125,59 @@ def plot_task_errors(series: dict, types: dict, out: pathlib.Path) -> pathlib.Pa
                 tasks[msg.task or topic].append((t, msg))
     if not tasks:
         return None
+    inequalities = {trace.task: trace for trace in inequality_traces(series, types)}
+    marks = sub_fsm_marks(series, types)
     fig, axes = plt.subplots(len(tasks) + 1, 1, sharex=True, squeeze=False,
-                             figsize=(10, 2.4 * (len(tasks) + 1)))
+                             figsize=(10, 2.4 * (len(tasks) + 1) + 0.4))
     axes = axes[:, 0]
     for name, items in sorted(tasks.items()):
-        t = np.array([x[0] for x in items])
-        axes[0].plot(t, [x[1].error_norm for x in items], label=name)
+        if name not in inequalities:  # an inequality's error is 0 while its bound holds
+            t = np.array([x[0] for x in items])
+            axes[0].plot(t, [x[1].error_norm for x in items], label=name)
     axes[0].set_ylabel('‖error‖')
-    axes[0].set_title('Task errors')
+    axes[0].set_title('Task errors; distances against their bounds (dotted: Running sub-FSM transitions)', pad=14)
     axes[0].legend(loc='upper right', fontsize='small')
+    draw_marks(axes[0], marks)
     for ax, (name, items) in zip(axes[1:], sorted(tasks.items())):
-        t = np.array([x[0] for x in items])
-        error = _matrix([x[1].error for x in items])
-        for k in range(error.shape[1]):
-            ax.plot(t, error[:, k], label=f'e[{k}]', linewidth=1)
-        inactive = np.array([not x[1].active for x in items])
-        if inactive.any():
-            ax.fill_between(t, 0, 1, where=inactive, transform=ax.get_xaxis_transform(),
-                            color='0.85', step='post', label='inactive')
+        if name in inequalities:
+            _plot_inequality(ax, inequalities[name])
+        else:
+            _plot_error_components(ax, items)
         ax.set_ylabel(name)
-        if error.shape[1]:
-            ax.legend(loc='upper right', fontsize='x-small', ncol=min(6, error.shape[1] + 1))
+        draw_marks(ax, marks, label=False)
     axes[-1].set_xlabel('time [s]')
     fig.tight_layout()
     path = out / 'task_errors.png'
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _plot_error_components(ax, items: list) -> None:
+    import numpy as np
+
+    t = np.array([x[0] for x in items])
+    error = _matrix([x[1].error for x in items])
+    for k in range(error.shape[1]):
+        ax.plot(t, error[:, k], label=f'e[{k}]', linewidth=1)
+    inactive = np.array([not x[1].active for x in items])
+    if inactive.any():
+        ax.fill_between(t, 0, 1, where=inactive, transform=ax.get_xaxis_transform(),
+                        color='0.85', step='post', label='inactive')
+    if error.shape[1]:
+        ax.legend(loc='upper right', fontsize='x-small', ncol=min(6, error.shape[1] + 1))
+
+
+def _plot_inequality(ax, trace) -> None:
+    """The distance, its bounds, and where a bound was active (the Solver's motion on it)."""
+    ax.plot(trace.t, trace.distance, color='tab:blue', linewidth=1.2, label='distance [m]')
+    for value, name in ((trace.d_min, 'd_min'), (trace.d_max, 'd_max')):
+        if value is not None:
+            ax.axhline(value, color='tab:red', linestyle='--', linewidth=1.0, label=f'{name} {value:.4g}')
+    if trace.active.any():
+        ax.fill_between(trace.t, 0, 1, where=trace.active, transform=ax.get_xaxis_transform(),
+                        color='tab:orange', alpha=0.3, step='post', label='bound active')
+    ax.legend(loc='upper right', fontsize='x-small', ncol=4)
 
 
 def plot_joints(topic: str, items: list, limits: dict, out: pathlib.Path) -> pathlib.Path:
@@ -264,7 +296,11 @@ def plot_run(path: pathlib.Path, out: pathlib.Path,
     from .visualization.picture import render_scene  # the 3-D scene, when the run recorded TF and markers
     scene = render_scene(path, out)
     written += [d.path for d in scene] + ([out / 'scene.gif'] if scene else [])
-    return [p for p in written if p is not None]
+    written = [p for p in written if p is not None]
+    if written:
+        from .overview import write_overview
+        written.append(write_overview(path, written, out))
+    return written
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -17,7 +17,8 @@ BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
 
 
 def run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([*BOOTSTRAP, *args], capture_output=True, text=True, timeout=timeout)
+    """The bootstrap with ``-v``: every composite's ``[state]`` lines, not only the root's."""
+    return subprocess.run([*BOOTSTRAP, '-v', *args], capture_output=True, text=True, timeout=timeout)
 
 
 def state_sequences(stdout: str) -> dict[str, list[str]]:
@@ -69,7 +70,7 @@ def test_same_behaviour_with_one_process_per_composite(single, tmp_path):
 
 @pytest.mark.parametrize('deploy', ['single', 'per-composite'])
 def test_ctrl_c_leads_to_an_orderly_stop_and_exit_0(deploy):
-    with Spawned([*BOOTSTRAP, 'pattern_demo', '--deploy', deploy]) as app:
+    with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--deploy', deploy]) as app:
         app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
         os.killpg(app.process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to every process of the app
         assert app.finish(timeout=60) == 0, app.output()
@@ -93,7 +94,7 @@ def _host_processes(namespace: str = '') -> list[int]:
 
 
 def test_a_dead_composite_process_puts_its_parent_in_safety_and_the_stop_stays_orderly():
-    with Spawned([*BOOTSTRAP, 'pattern_demo', '--deploy', 'per-composite', '--duration', '4']) as app:
+    with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--deploy', 'per-composite', '--duration', '4']) as app:
         app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
         hold = _host_processes('/app/program/hold')
         assert len(hold) == 1, hold

@@ -1,0 +1,197 @@
+"""What a run did, as a robot programmer asks it (paper §4.1 Tasks, §6.1 life-cycle and Running sub-FSM).
+
+:class:`RunFacts` accumulates, from the messages a run publishes, what the console shows live and
+what the summary reports at the end: the state of every composite, the path of every Running
+sub-FSM with the time of each transition, each Task's error (an equality Task) or its distance
+against its bounds (an inequality Task: ``output[0]`` against ``d_min``/``d_max``), the Solver's
+status, and the Timer's tick times. It holds no ROS objects: :mod:`.watch` feeds it.
+
+Times of the sub-FSM path are the Coordinators' own stamps, counted from the first composite that
+reached ``Active.Run.Running``; a Task's time to converge is counted in its own tick stamps from
+its first tick. A recording holds the same messages, so the same figures follow from it.
+"""
+
+from __future__ import annotations
+
+import math
+from array import array
+from dataclasses import dataclass, field
+
+__all__ = ['TaskSpec', 'TaskTrace', 'Transition', 'RunFacts', 'task_specs', 'settling_time', 'SETTLING_BAND']
+
+#: A Task has converged once its error stays within this fraction of its peak (2 % settling time).
+SETTLING_BAND = 0.02
+TASK_STATE = 'itasc_msgs/msg/TaskState'
+SOLVER_STATUS = 'itasc_msgs/msg/SolverStatus'
+RUNNING = 'Active.Run.Running'
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A Task of the model: its name, its TaskState topic and, for an inequality, its bounds."""
+
+    name: str
+    topic: str
+    inequality: bool = False
+    lower: float = -math.inf
+    upper: float = math.inf
+
+
+def task_specs(model, *, namespace: str) -> list[TaskSpec]:
+    """Every Task of the composition ``model``: a composite publishing ``<ns>/Rows/state``, with
+    the bounds of its inequality (the ``lower``/``upper`` of the entity marked ``inequality``)."""
+    from itasc_core.composition.model import walk
+
+    from ..recording.topics import data_flow_topics
+    topics = [t for t, kind in data_flow_topics(model, namespace=namespace).items() if kind == TASK_STATE]
+    composites = {path: composite for path, composite in walk(model, namespace.rsplit('/', 1)[0])}
+    specs = []
+    for topic in topics:
+        owner = composites.get(topic.removesuffix('/Rows/state'))
+        name = owner.name if owner else topic.split('/')[-3]
+        bounds = [e.parameters for e in (owner.entities if owner else []) if e.parameters.get('inequality')]
+        if bounds:
+            lower, upper = (float(bounds[0].get(k, [d])[0]) for k, d in (('lower', -math.inf), ('upper', math.inf)))
+            specs.append(TaskSpec(name, topic, inequality=True, lower=lower, upper=upper))
+        else:
+            specs.append(TaskSpec(name, topic))
+    return specs
+
+
+def settling_time(t, values, *, band: float = SETTLING_BAND) -> float | None:
+    """Seconds from ``t[0]`` until ``values`` stay within ``band`` of their peak; None if the last
+    value is still outside (not converged), 0 if nothing ever left the band."""
+    if not len(values):
+        return None
+    limit = band * max(values)
+    outside = [i for i, v in enumerate(values) if v > limit]
+    if not outside:
+        return 0.0
+    if outside[-1] == len(values) - 1:
+        return None
+    return t[outside[-1] + 1] - t[0]
+
+
+@dataclass
+class TaskTrace:
+    """The ticks of one Task: stamp, error norm and (inequality) distance ``output[0]``."""
+
+    spec: TaskSpec
+    t: array = field(default_factory=lambda: array('d'))
+    error: array = field(default_factory=lambda: array('d'))
+    distance: array = field(default_factory=lambda: array('d'))
+
+    def add(self, msg) -> None:
+        self.t.append(msg.stamp.sec + msg.stamp.nanosec * 1e-9)
+        self.error.append(msg.error_norm)
+        if self.spec.inequality and len(msg.output):
+            self.distance.append(msg.output[0])
+
+    def margin(self, distance: float) -> float:
+        """How far ``distance`` is inside the bounds (negative: violated)."""
+        return min(distance - self.spec.lower, self.spec.upper - distance)
+
+    @property
+    def final_error(self) -> float | None:
+        return self.error[-1] if self.error else None
+
+    @property
+    def final_distance(self) -> float | None:
+        return self.distance[-1] if self.distance else None
+
+    @property
+    def min_margin(self) -> float | None:
+        return min(map(self.margin, self.distance)) if self.distance else None
+
+    @property
+    def converged_after(self) -> float | None:
+        return None if self.spec.inequality else settling_time(self.t, self.error)
+
+    @property
+    def peak_error(self) -> float:
+        return max(self.error, default=0.0)
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A composite entered ``state`` (its Coordinator's stamp ``stamp``, s) because of ``event``."""
+
+    composite: str
+    state: str
+    event: str
+    stamp: float
+
+
+class RunFacts:
+    """Everything the console and the summary say about a run, from its messages."""
+
+    def __init__(self, *, composites: dict[str, str], tasks: list[TaskSpec]) -> None:
+        """``composites``: name -> namespace, parents first; ``tasks``: the model's Tasks."""
+        self.composites = composites
+        self.states: dict[str, str] = {name: '-' for name in composites}
+        self.transitions: list[Transition] = []
+        self.tasks: dict[str, TaskTrace] = {spec.name: TaskTrace(spec) for spec in tasks}
+        self.solver_status = ''
+        self.running_since: float | None = None   # stamp of the first composite in Running
+        self.tick_durations = array('d')
+        self._last_tick = -math.inf
+        self._tick_span: list[float] = []          # first and last tick (monotonic)
+
+    # -- feeding ------------------------------------------------------------------------------
+
+    def on_state(self, msg) -> Transition:
+        stamp = msg.stamp.sec + msg.stamp.nanosec * 1e-9
+        transition = Transition(msg.composite, msg.state, msg.event, stamp)
+        self.states[msg.composite] = msg.state
+        self.transitions.append(transition)
+        if self.running_since is None and msg.state.startswith(RUNNING):
+            self.running_since = stamp
+        return transition
+
+    def on_task(self, task: str, msg) -> None:
+        self.tasks[task].add(msg)
+
+    def on_solver(self, msg) -> None:
+        self.solver_status = msg.status
+
+    def on_ticks(self, stamps, durations) -> None:
+        """The Timer's latest ticks (monotonic start, duration; oldest first): those not seen yet
+        are kept. Walks back from the newest, so a poll costs what is new."""
+        new = []
+        for stamp, duration in zip(reversed(stamps), reversed(durations)):
+            if stamp <= self._last_tick:
+                break
+            new.append((stamp, duration))
+        if new:
+            new.reverse()
+            self.tick_durations.extend(d for _, d in new)
+            self._last_tick = new[-1][0]
+            self._tick_span = [self._tick_span[0] if self._tick_span else new[0][0], new[-1][0]]
+
+    # -- what it says -------------------------------------------------------------------------
+
+    @staticmethod
+    def sub_state(state: str) -> str | None:
+        """The Running sub-FSM state in a fully-qualified state, if any."""
+        return state.removeprefix(RUNNING + '.') if state.startswith(RUNNING + '.') else None
+
+    def paths(self) -> dict[str, list[tuple[str, float]]]:
+        """Per composite with a Running sub-FSM: ``[(sub-state, seconds from Running), ...]``."""
+        out: dict[str, list[tuple[str, float]]] = {name: [] for name in self.composites}  # parents first
+        for tr in self.transitions:
+            sub = self.sub_state(tr.state)
+            if sub is not None:
+                out[tr.composite].append((sub, tr.stamp - (self.running_since or tr.stamp)))
+        return {name: path for name, path in out.items() if path}
+
+    def achieved_rate(self) -> float:
+        n = len(self.tick_durations)
+        span = self._tick_span[1] - self._tick_span[0] if self._tick_span else 0.0
+        return (n - 1) / span if n > 1 and span > 0 else 0.0
+
+    def tick_percentile(self, q: float) -> float | None:
+        """The ``q``-th percentile of the tick times (s), nearest rank; None without ticks."""
+        if not self.tick_durations:
+            return None
+        ordered = sorted(self.tick_durations)
+        return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]

@@ -1,0 +1,48 @@
+"""The bootstrap's subscriptions for the console (paper §6.1 Coordinator states, §4.1 Task and
+Solver data): every composite's state topic, every Task's ``Rows/state`` and the Solver status,
+fed into :class:`~.facts.RunFacts`, every transition also to the run's trace and to the display.
+
+Task and Solver topics come from the model, so they are subscribed before the first tick, with a
+queue deep enough that the summary misses no tick the recording holds.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from itasc_core.communication.qos import STATE_QOS
+from itasc_msgs.msg import CoordinatorState, SolverStatus, TaskState
+
+from .facts import RunFacts, Transition
+
+__all__ = ['Watch']
+
+#: Reliable and deep: a display that redraws must not make the summary lose ticks.
+WATCH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=2000, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class Watch:
+    """Subscribes ``node`` to what ``facts`` needs; calls ``on_transition`` for every state change."""
+
+    def __init__(self, node: Node, *, facts: RunFacts, solver_topics: list[str],
+                 on_transition: Callable[[Transition], None]) -> None:
+        self.facts = facts
+        self._on_transition = on_transition
+        for namespace in facts.composites.values():
+            node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
+        for name, trace in facts.tasks.items():
+            node.create_subscription(TaskState, trace.spec.topic,
+                                     lambda msg, name=name: facts.on_task(name, msg), WATCH_QOS)
+        for topic in solver_topics:
+            node.create_subscription(SolverStatus, topic, facts.on_solver, WATCH_QOS)
+
+    def _on_state(self, msg: CoordinatorState) -> None:
+        self._on_transition(self.facts.on_state(msg))
+
+    def poll_timer(self, timer) -> None:
+        """Take the root Timer's latest tick times (its window is bounded: poll it often)."""
+        if timer is not None:
+            self.facts.on_ticks(timer.stamps, timer.durations)

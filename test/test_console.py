@@ -1,0 +1,179 @@
+"""What a robot programmer reads (issue #15): short plain output ending in a summary whose figures
+are the recording's, ``--summary-json`` for scripts, a live view on a terminal that shows Safety,
+and ``itasc-plot``'s inequality panel drawn from the recorded distances and bound."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pexpect
+import pyte
+import pytest
+import yaml
+from rosbags.highlevel import AnyReader
+
+BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+REPO = Path(__file__).resolve().parent.parent
+MODELS = Path(__file__).parent / 'data' / 'models'
+ROOT = '/approach_object'
+PROGRAM = f'{ROOT}/itasc'
+
+
+def recorded(mcap: Path) -> dict[str, list]:
+    """topic -> [(log time s, message)] of every message of the recording."""
+    topics: dict[str, list] = {}
+    with AnyReader([mcap]) as reader:
+        for connection, log_time, raw in reader.messages():
+            topics.setdefault(connection.topic, []).append((log_time * 1e-9, reader.deserialize(raw, connection.msgtype)))
+    return topics
+
+
+def seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+@pytest.fixture(scope='module')
+def approach(tmp_path_factory):
+    """``approach_object`` for 10 s, piped (no terminal), recorded, with ``--summary-json``."""
+    out = tmp_path_factory.mktemp('console')
+    result = subprocess.run([*BOOTSTRAP, 'approach_object', '--duration', '10', '--record', str(out / 'run.mcap'),
+                             '--summary-json', str(out / 'summary.json')], capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    result.topics = recorded(out / 'run.mcap')
+    result.summary = json.loads((out / 'summary.json').read_text())
+    result.out = out
+    return result
+
+
+def recorded_path(topics: dict) -> list[tuple[str, float]]:
+    """The program's Running sub-FSM path, seconds from the first composite in Running."""
+    states = [m for topic, items in topics.items() if topic.endswith('/state') for _, m in items
+              if hasattr(m, 'composite')]
+    start = min(seconds(m.stamp) for m in states if m.state.startswith('Active.Run.Running'))
+    return [(m.state.removeprefix('Active.Run.Running.'), seconds(m.stamp) - start)
+            for _, m in topics[f'{PROGRAM}/state'] if m.state.startswith('Active.Run.Running.')]
+
+
+def test_plain_output_is_short_shows_the_path_and_ends_in_the_summary(approach):
+    lines = approach.stdout.splitlines()
+    assert len(lines) <= 30, approach.stdout
+    # the root's phases and the sub-FSM, not every composite's life cycle
+    assert not [line for line in lines if re.match(r'\[state\] (AvoidObstacle|Retreat): ', line)], approach.stdout
+    for state in ('approach', 'approach_accurately', 'hold'):
+        assert f'[state] itasc: Active.Run.Running.{state}  <- ' in approach.stdout
+    assert lines[-1].startswith('approach_object: stopped (duration) - exit 0, 10.0 s in Running'), lines[-1]
+    path = next(line for line in lines if line.strip().startswith('path'))
+    assert re.search(r'itasc: approach 0\.\d\d s -> approach_accurately \d+\.\d\d s -> hold \d+\.\d\d s', path), path
+    # the full trace went to the log file the summary names, every composite's every transition
+    trace = Path(next(line for line in lines if line.strip().startswith('trace')).split(None, 1)[1])
+    assert '[state] AvoidObstacle: Active.Stop.Stopped.NotifyStopped' in trace.read_text()
+
+
+def test_summary_figures_are_those_of_the_recording(approach):
+    topics, summary = approach.topics, approach.summary
+    assert summary['exit_code'] == 0 and summary['ended'] == 'duration' and summary['safety'] is None
+    # the path and its times
+    assert [(s['state'], round(s['at'], 6)) for s in summary['paths']['itasc']] == \
+        [(state, round(at, 6)) for state, at in recorded_path(topics)]
+    tasks = {t['task']: t for t in summary['tasks']}
+    # ApproachObject: the final error is the last one recorded
+    approach_states = [m for _, m in topics[f'{PROGRAM}/ApproachObject/Rows/state']]
+    assert tasks['ApproachObject']['final_error'] == approach_states[-1].error_norm
+    assert tasks['ApproachObject']['ticks'] == len(approach_states)
+    # AvoidObstacle: the minimum margin is the smallest recorded distance less the model's d_min
+    d_min = yaml.safe_load((REPO / 'config' / 'tasks' / 'avoid_obstacle.yaml').read_text())['d_min']
+    distances = np.array([m.output[0] for _, m in topics[f'{PROGRAM}/AvoidObstacle/Rows/state']])
+    avoid = tasks['AvoidObstacle']
+    assert avoid['kind'] == 'inequality' and avoid['d_min'] == d_min and avoid['d_max'] is None
+    assert avoid['min_margin'] == pytest.approx(distances.min() - d_min, abs=1e-15)
+    assert avoid['final_distance'] == distances[-1]
+    # the same figures in the lines a person reads
+    text = approach.stdout
+    assert f'final error {approach_states[-1].error_norm:.4g}' in text
+    assert f'min margin {distances.min() - d_min:.4g} m' in text
+    # rate and tick times, the recording and how to plot it
+    rate = summary['rate']
+    assert rate['ticks'] > 500 and 20 < rate['achieved'] <= 110 and 0 < rate['tick_p50'] <= rate['tick_p99']
+    assert summary['recording'].endswith('run.mcap') and summary['plot_command'] == f'itasc-plot {summary["recording"]}'
+    assert f'(plot it: itasc-plot {summary["recording"]})' in text
+
+
+def test_the_inequality_plot_is_the_recorded_distance_against_d_min(approach):
+    from itasc_bringup.plot import read_run
+    from itasc_bringup.task_plot import inequality_traces
+
+    series, types, _ = read_run(approach.out / 'run.mcap')
+    traces = {t.task: t for t in inequality_traces(series, types)}
+    assert set(traces) == {'AvoidObstacle'}  # ApproachObject and Retreat are equality Tasks
+    avoid = traces['AvoidObstacle']
+    distances = [m.output[0] for _, m in approach.topics[f'{PROGRAM}/AvoidObstacle/Rows/state']]
+    assert avoid.distance.tolist() == distances
+    assert avoid.d_min == pytest.approx(0.15, abs=1e-9) and avoid.d_max is None
+    # active: the commanded motion lay on the bound, i.e. while the hand slid along d_min
+    assert avoid.active.any() and not avoid.active.all()
+    assert np.all(avoid.distance[avoid.active] < 0.15 + 0.02)
+
+
+def test_the_live_view_shows_the_tree_the_tasks_and_safety_in_red():
+    screen = pyte.Screen(140, 50)
+    stream = pyte.ByteStream(screen)
+    child = pexpect.spawn(BOOTSTRAP[0], [*BOOTSTRAP[1:], str(MODELS / 'infeasible.yaml'), '--duration', '8'],
+                          dimensions=(50, 140), timeout=180)
+    try:
+        running, safety = None, None
+        while True:
+            try:
+                stream.feed(child.read_nonblocking(65536, timeout=1))
+            except pexpect.TIMEOUT:
+                continue
+            except pexpect.EOF:
+                break
+            shown = '\n'.join(screen.display)
+            if running is None and re.search(r'└── StayClose +Run\.Running', shown) and 'distance 0.' in shown:
+                running = shown
+            if safety is None and 'SAFETY:' in shown and 'rate - (Safety: nothing runs)' in shown:
+                safety = (shown, [row for row in range(screen.lines) if screen.display[row].startswith('SAFETY:')],
+                          {row: dict(screen.buffer[row]) for row in range(screen.lines)})
+        child.close()
+    finally:
+        child.terminate(force=True)
+    assert child.exitstatus == 3, '\n'.join(screen.display)
+    assert running is not None, '\n'.join(screen.display)
+    # the tree of composites, each with its state, and a row per task
+    for line in (r'^infeasible\s+Run\.Running', r'^└── itasc\s+Run\.Running\.\w+\s+path: approach',
+                 r'^\s+├── ApproachObject\s+Run\.Running', r'^\s+└── StayClose\s+Run\.Running',
+                 r'^ ApproachObject\s+error \d\.\d{4}', r'^ AvoidObstacle\s+distance 0\.\d{4} m, margin '):
+        assert re.search(line, running, flags=re.M), (line, running)
+    assert re.search(r'^rate \d+\.\d Hz \(target 100\), tick p50', running, flags=re.M), running
+    # Safety: said at once, on a red line, with its reason; the view drawn in place, not scrolled
+    shown, rows, buffer = safety
+    assert rows and 'infeasible problem' in shown, shown
+    assert buffer[rows[0]][0].fg == 'red' and buffer[rows[0]][0].bold
+    assert re.search(r'path: approach → squeeze', shown), shown
+    assert len(re.findall(r'── StayClose', shown)) == 1, shown
+    final = '\n'.join(screen.display)
+    assert re.search(r'^infeasible: stopped \(duration, went through Safety\) - exit 3', final, flags=re.M), final
+
+
+def test_help_lists_the_applications_and_examples():
+    result = subprocess.run([*BOOTSTRAP, '--help'], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    assert re.search(r'applications: .*approach_object.*pattern_demo', result.stdout)
+    assert len(re.findall(r'^  bootstrap \w+', result.stdout, flags=re.M)) == 3
+    assert 'register-python-argcomplete bootstrap' in result.stdout
+
+
+def test_shell_completion_offers_the_applications(tmp_path):
+    import os
+    line = 'bootstrap appr'
+    candidates = tmp_path / 'candidates'
+    env = {**os.environ, '_ARGCOMPLETE': '1', '_ARGCOMPLETE_IFS': '\n', 'COMP_LINE': line,
+           'COMP_POINT': str(len(line)), '_ARGCOMPLETE_STDOUT_FILENAME': str(candidates)}
+    result = subprocess.run(BOOTSTRAP, env=env, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert set(candidates.read_text().split()) == {'approach_object', 'approach_object_ros_driver'}
