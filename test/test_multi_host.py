@@ -158,3 +158,39 @@ def test_the_agent_refuses_bad_settings_with_exit_2(env, args, message):
                  env={**base, 'ITASC_DDS_PEERS': '10.200.0.1', **env}) as agent:
         assert agent.finish(timeout=30) == 2
     assert message in agent.err and 'Traceback' not in agent.err, agent.err
+
+
+def test_a_host_without_an_agent_fails_the_start_naming_the_host():
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'pattern_two_hosts', '--duration', '3']) as app:
+        assert app.finish(timeout=60) == 2, app.output()
+    assert "SAFETY: app entered Safety <- e_emergency from /app/composer: process of composite program could not " \
+           "be started: no host agent 'second' answered within 5 s" in app.out, app.output()
+
+
+def _app_with_hosts(tmp_path: Path, hosts: str) -> Path:
+    """A copy of the shipped approach_object application with ``hosts:`` added (YAML text)."""
+    from itasc_bringup.apps import resolve_app
+
+    config = tmp_path / 'config'
+    shutil.copytree(resolve_app('approach_object').parent.parent, config)
+    app = config / 'apps' / 'approach_object.yaml'
+    app.write_text(app.read_text().replace('\n  program:', f'\n  hosts: {hosts}\n  program:', 1))
+    return app
+
+
+def test_an_application_places_its_program_and_tasks_on_hosts(tmp_path):
+    from itasc_bringup.apps import load_composition
+
+    root = load_composition(str(_app_with_hosts(tmp_path, '{itasc: arm_pc, AvoidObstacle: vision_pc}')))
+    program = root.entity('itasc')
+    placed = {c.name: c.host for c in program.children}
+    assert program.host == 'arm_pc' and root.host is None
+    assert placed == {'ApproachObject': None, 'AvoidObstacle': 'vision_pc', 'Retreat': None}
+
+
+def test_a_host_placement_naming_no_composite_is_refused_with_exit_2(tmp_path):
+    app = _app_with_hosts(tmp_path, '{Driver_panda: arm_pc}')
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', str(app)]) as boot:
+        assert boot.finish(timeout=60) == 2
+    assert "hosts places 'Driver_panda', which is neither the program nor one of its tasks" in boot.err, boot.err
+    assert 'Traceback' not in boot.err

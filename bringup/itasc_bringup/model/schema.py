@@ -2,7 +2,7 @@
 small YAML DSL, validated with pydantic (unknown fields refused).
 
 * **Application** — a Constraint-based program and the hardware it runs on: one Driver per robot,
-  Sensors for moving objects, the rate.
+  Sensors for moving objects, the rate, the machines its composites run on (``hosts``).
 * **Constraint-based program** — robots (URDF, base type, placement, object frames on links),
   objects (placement, object frames), Tasks, the Solver, named configurations (paper §5),
   Monitors (condition → event, paper §4.1) and the Running sub-FSM (paper §6.2).
@@ -422,3 +422,17 @@ class Application(_Model):
     program: Program
     drivers: list[Driver] = Field(min_length=1)
     sensors: list[Sensor] = Field(default_factory=list)
+    #: Composites on other machines (README "Several machines"): the program's or a Task's name ->
+    #: the name of the host whose agent runs it.
+    hosts: dict[str, str] = Field(default_factory=dict)
+
+    @model_validator(mode='after')
+    def _placeable(self) -> 'Application':
+        known = {self.program.name, *(task.name for task in self.program.tasks)}
+        for name, host in self.hosts.items():
+            if name not in known:
+                raise ValueError(f"hosts places '{name}', which is neither the program nor one of its tasks; "
+                                 f'known: {sorted(known)}')
+            if not re.match(NAME, host):
+                raise ValueError(f"host name {host!r} of '{name}' must match {NAME}")
+        return self

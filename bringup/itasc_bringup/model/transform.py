@@ -70,8 +70,15 @@ def to_composition(app: Application) -> CompositeModel:
         connections += [_connect(f'Driver_{d.robot}.joint_state', f'{program.name}.joint_state_{d.robot}'),
                         _connect(f'{program.name}.command', f'Driver_{d.robot}.command')]
     connections += [_connect(f'Sensor_{s.object}.pose', f'{program.name}.pose_{s.object}') for s in app.sensors]
-    return CompositeModel(name=app.name, rate=app.rate, entities=[*drivers, *sensors, _program(app)],
+    program_model = _placed(_program(app), app.hosts)
+    return CompositeModel(name=app.name, rate=app.rate, entities=[*drivers, *sensors, program_model],
                           connections=connections, monitors=[m for d in app.drivers for m in _watchdogs(d, app.rate)])
+
+
+def _placed(composite: CompositeModel, hosts: dict[str, str]) -> CompositeModel:
+    """``composite`` and the composites inside it on the hosts ``hosts`` names them on."""
+    entities = [_placed(e, hosts) if isinstance(e, CompositeModel) else e for e in composite.entities]
+    return composite.model_copy(update={'entities': entities, 'host': hosts.get(composite.name, composite.host)})
 
 
 #: How long a Driver may take to report its first joint state once the application runs.

@@ -30,8 +30,9 @@ __all__ = ['HostClient', 'RemoteProcess', 'LOST', 'FIND_TIMEOUT']
 
 #: ``returncode`` of a composite whose agent was lost (its process's own status is unknown).
 LOST = -1
-#: How long an agent may take to answer a first start request [s].
-FIND_TIMEOUT = 10.0
+#: How long an agent may take to answer a first start request [s] (before the parent's Coordinator
+#: gives up waiting for its children, 10 s).
+FIND_TIMEOUT = 5.0
 
 
 class RemoteProcess:
