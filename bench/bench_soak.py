@@ -184,7 +184,8 @@ def main() -> int:
         print(f'  {line}')
     print(f'safety: {len(emergencies)} e_emergency, {len(safety)} Safety entries {safety[:5]}')
     print(f'tick rate: {rate.get("achieved", float("nan")):.1f} Hz (target {rate.get("target")}), '
-          f'tick p50 {1e3 * rate.get("tick_p50", float("nan")):.2f} ms, p99 {1e3 * rate.get("tick_p99", float("nan")):.2f} ms, '
+          f'tick p50 {1e3 * rate.get("tick_p50", float("nan")):.2f} ms, '
+          f'p99 {1e3 * rate.get("tick_p99", float("nan")):.2f} ms, '
           f'{rate.get("ticks")} ticks')
     print('  Solver ticks/s per minute: ' + ', '.join(f'{r:.1f}' for r in per_minute)
           + f'; longest gap between ticks {1e3 * longest:.0f} ms')

@@ -8,7 +8,8 @@ Wraps :mod:`itasc_tasks.setpoint_generator`. ``kind``:
   ``target`` (``duration``, ``max_velocity``, ``max_acceleration``);
 * ``periodic``: ``offset + amplitude sin(2 pi t / period + phase)``;
 * ``topic``: values (in output space) received on the ROS topic ``topic``
-  (``std_msgs/Float64MultiArray``); holds the current output until the first one arrives.
+  (``std_msgs/Float64MultiArray``); holds the current output until the first one arrives; a
+  value that is not finite or not one per output raises ``e_emergency`` (Safety).
 
 ``target`` is in output space, or, with ``target_is_pose``, the pose ``[x, y, z, roll, pitch,
 yaw]`` of o2 in o1 (a Cartesian Task; interpolated along the geodesic). A point-to-point motion
@@ -139,6 +140,11 @@ class SetpointGeneratorEntity(FunctionalEntity):
         if isinstance(value, pin.SE3):
             value = _features_of(value, table)[index]
             velocity = np.asarray(velocity)[index]
+        if self.kind == 'topic' and (np.shape(value) != (len(index),) or not np.isfinite(value).all()):
+            self.raise_event('e_emergency', priority=True,
+                             detail=f"{self.params['topic']}: setpoint {np.asarray(value).tolist()} is not "
+                                    f"{len(index)} finite values")
+            return
         rows = [table.rows[i] for i in index]
         self.outputs['setpoint'].write(table_msg(rows, ('value', 'velocity'), np.column_stack([value, velocity])))
         self.outputs['progress'].write(Float64(data=self._progress(t)))

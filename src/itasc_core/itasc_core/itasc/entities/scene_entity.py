@@ -12,6 +12,9 @@ from its input ports, computes forward kinematics once, and writes on its output
   ``[p; log3(R)]`` with its Jacobian on the program-wide joint velocities (a labelled table,
   see :mod:`.messages`), geometric semantics ``Relation(o2|o1)@o1``.
 
+A measured pose that is not finite or whose quaternion is zero raises ``e_emergency`` (Safety) and
+nothing is written that tick; any other quaternion is normalised.
+
 Parameters are lists of YAML flow mappings (ROS parameters hold no nested structures), e.g.::
 
     robots:    ['{name: panda, urdf: /abs/panda.urdf, base: fixed, xyz: [0, 0, 0],
@@ -114,8 +117,14 @@ class SceneEntity(FunctionalEntity):
             self.scene.set_positions(state.name, state.position)
         for name in self.sensed:
             msg = self.inputs[f'pose_{name}'].latest
-            if msg is not None:
-                self.scene.objects[name].set_pose(_se3(msg.pose))
+            if msg is None:
+                continue
+            pose = _se3(msg.pose)
+            if pose is None:  # a broken measurement is not a place to move to
+                self.raise_event('e_emergency', priority=True,
+                                 detail=f'{name}: measured pose not finite or its quaternion zero')
+                return
+            self.scene.objects[name].set_pose(pose)
         self.scene.update(t)
         out = JointState(name=list(self.scene.joint_names), position=self.scene.q.tolist())
         out.header.stamp = stamp(t)
@@ -127,9 +136,13 @@ class SceneEntity(FunctionalEntity):
             self.outputs[f'relation_{name}'].write(table_msg(FEATURES, self._columns, values, rotation=3))
 
 
-def _se3(pose) -> pin.SE3:
-    q = pose.orientation
-    quaternion = pin.Quaternion(q.w, q.x, q.y, q.z)
-    quaternion.normalize()
-    p = pose.position
-    return pin.SE3(quaternion.toRotationMatrix(), np.array([p.x, p.y, p.z]))
+def _se3(pose) -> pin.SE3 | None:
+    """A ``geometry_msgs/Pose`` as SE3, its quaternion normalised (scaled first, so that neither a
+    tiny nor a huge one under- or overflows); None if a value is not finite or the quaternion zero."""
+    o, p = pose.orientation, pose.position
+    q, xyz = np.array([o.x, o.y, o.z, o.w]), np.array([p.x, p.y, p.z])
+    if not (np.isfinite(q).all() and np.isfinite(xyz).all()) or not q.any():
+        return None
+    q /= np.abs(q).max()
+    q /= np.linalg.norm(q)
+    return pin.SE3(pin.Quaternion(q[3], q[0], q[1], q[2]).toRotationMatrix(), xyz)
