@@ -141,8 +141,13 @@ def test_plot_writes_task_joint_and_lifecycle_pictures(run_mcap, tmp_path, capsy
     assert main([str(run_mcap), '--out', str(out), '--urdf', str(urdf)]) == 0
     printed = capsys.readouterr().out.split()
     names = sorted(p.name for p in out.iterdir())
-    assert names == ['joints_app_robot_joint_states.png', 'lifecycle.png', 'task_errors.png']
+    assert names == ['index.html', 'joints_app_robot_joint_states.png', 'lifecycle.png', 'task_errors.png']
     assert sorted(pathlib.Path(p).name for p in printed) == names
+    # the overview page shows every picture, task meanings first
+    page = (out / 'index.html').read_text()
+    assert [page.index(f'<img src="{name}"') for name in ('task_errors.png', 'joints_app_robot_joint_states.png',
+                                                          'lifecycle.png')] == sorted(page.index(f'<img src="{n}"') for n in names[1:])
+    names.remove('index.html')
     for name in names:
         path = out / name
         assert path.stat().st_size > 20_000, name

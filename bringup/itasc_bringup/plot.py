@@ -1,3 +1,4 @@
+# PYTHON_ARGCOMPLETE_OK
 """``itasc-plot run.mcap [--out DIR] [--urdf robot.urdf]``: pictures of a recorded run.
 
 Serves the SPEC's recording requirement ("recording the whole run to MCAP") and the paper's §6.1
@@ -309,6 +310,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--out', type=pathlib.Path, help='output directory '
                         '(default: <mcap stem>_plots/ next to the file)')
     parser.add_argument('--urdf', type=pathlib.Path, help='robot URDF for joint limit lines')
+    import argcomplete
+    argcomplete.autocomplete(parser)
     args = parser.parse_args(argv)
     out = args.out or args.mcap.with_name(args.mcap.stem + '_plots')
     try:
