@@ -64,7 +64,7 @@ def test_same_behaviour_with_one_process_per_composite(single, tmp_path):
     # the same computation: the plant tracks the sine as closely in both deployments
     errors = {'single': tracking_errors(single.bag), 'per-composite': tracking_errors(bag)}
     rms = {mode: float(np.sqrt(np.mean(e[len(e) // 4:] ** 2))) for mode, e in errors.items()}
-    assert all(len(e) > 1000 for e in errors.values()), {m: len(e) for m, e in errors.items()}
+    assert all(len(e) > 300 for e in errors.values()), {m: len(e) for m, e in errors.items()}  # 2 s at up to 1 kHz
     assert all(r < 0.15 for r in rms.values()), rms  # a sine of amplitude 1 tracked to within 15 %
 
 
