@@ -78,8 +78,10 @@ def test_the_adapter_drives_a_separate_ros2_control_driver(ros, interface):
             moved, elapsed = _measured(adapter) - start, time.monotonic() - started
             expected = np.array([COMMAND[j] for j in JOINTS]) * elapsed
             assert moved[1] == pytest.approx(0.0, abs=1e-9), moved            # not commanded: still
-            assert moved[0] == pytest.approx(expected[0], rel=0.3), (moved, expected)
-            assert moved[2] == pytest.approx(expected[2], rel=0.3), (moved, expected)
+            # each joint got its own command (by name): the motions are in the commanded ratio, and
+            # about as large as commanded (a loaded machine delays the driver's execution)
+            assert moved[0] / moved[2] == pytest.approx(expected[0] / expected[2], rel=0.02), (moved, expected)
+            assert moved[0] == pytest.approx(expected[0], rel=0.5), (moved, expected)
 
             adapter.safe()    # Safety: the Scheduler stops ticking; the adapter's last word holds
             settle = time.monotonic() + 0.3
