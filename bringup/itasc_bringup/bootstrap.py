@@ -155,7 +155,8 @@ def main(argv: list[str] | None = None) -> int:
         ran_for: float | None = None  # Running, until the stop was commanded
         console = _make_console(args, facts=facts, outcome=outcome, root=root.name, trace=trace,
                                 target_rate=model.rate or 0.0,
-                                rate=lambda: composer.timer.achieved_rate() if composer and composer.timer else 0.0,
+                                rate=lambda: (composer.timer.achieved_rate() if composer and composer.timer else 0.0)
+                                or facts.achieved_rate(),
                                 elapsed=lambda: None if running_since is None else ran_for or time.monotonic() - running_since)
 
         def on_transition(transition) -> None:
@@ -227,6 +228,8 @@ def main(argv: list[str] | None = None) -> int:
                 warnings=warnings)
         return code
     finally:
+        if console is not None:
+            console.close()
         if recorder is not None:
             recorder.close()
         stopped = composer is not None and composer.coordinator.state.endswith('NotifyStopped')

@@ -81,9 +81,14 @@ class LiveConsole:
             self._drawn_at = now
             self._live.refresh()
 
+    def close(self) -> None:
+        """Leave the terminal as it was (cursor shown), also when the run ended in an error."""
+        if self._live.is_started:
+            self._live.stop()
+
     def finish(self, lines: list[str]) -> None:
         self._live.refresh()
-        self._live.stop()
+        self.close()
         for line in lines:
             self._trace.write(line)
         self.console.print(Text('\n'.join(lines)), highlight=False)

@@ -94,6 +94,9 @@ class PlainConsole:
             self._print(f'[status] {status}')
             self._last_status, self._last_status_at = status, now
 
+    def close(self) -> None:
+        """Nothing to restore: plain lines leave the stream as it was."""
+
     def finish(self, lines: list[str]) -> None:
         for line in lines:
             self._trace.write(line)
