@@ -16,6 +16,7 @@ the Timer's tick computes the Tasks, nothing else). It publishes
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 import numpy as np
@@ -25,6 +26,7 @@ from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
@@ -181,7 +183,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f'error: {err}', file=sys.stderr)
         return 2
     configure_dds()
-    rclpy.init()
+    # Python's own handlers, not rclpy's: rclpy's shut the context down under a running timer
+    # callback, whose publish then fails with a traceback; a KeyboardInterrupt ends spin cleanly.
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = Visualizer(app, namespace=f'/{app.name}', rate=args.rate)
