@@ -104,8 +104,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     model = load(args.app, args.rate)
 
-    from itasc_core.communication.dds import configure_dds
-    configure_dds()
+    from itasc_core.communication.dds import DdsSettingsError, configure_dds
+    try:
+        configure_dds()
+    except DdsSettingsError as err:  # a wrong ITASC_DDS_PEERS/ITASC_DDS_INTERFACES: nothing started
+        print(f'error: {err}', file=sys.stderr)
+        return 2
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 

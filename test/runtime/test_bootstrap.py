@@ -116,3 +116,12 @@ def test_composite_processes_end_when_the_bootstrap_is_killed():
         while _host_processes() and time.monotonic() < deadline:
             time.sleep(0.1)
         assert _host_processes() == []
+
+
+def test_wrong_dds_settings_exit_2_without_traceback():
+    env = {**os.environ, 'ITASC_DDS_PEERS': 'not-an-address'}
+    env.pop('FASTRTPS_DEFAULT_PROFILES_FILE', None)  # our profile, generated from the peers
+    result = subprocess.run([*BOOTSTRAP, 'pattern_demo', '--duration', '1'], capture_output=True, text=True,
+                            timeout=60, env=env)
+    assert result.returncode == 2, result.stdout[-2000:] + result.stderr[-2000:]
+    assert 'ITASC_DDS_PEERS' in result.stderr and 'Traceback' not in result.stderr
