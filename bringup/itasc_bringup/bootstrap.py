@@ -57,7 +57,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     app.completer = _app_completer(apps)
     parser.add_argument('--duration', type=float, default=None,
-                        help='stop SECONDS after the root reached Running (or Safety)')
+                        help='stop SECONDS after the root reached Running (a failure before Running stops at once)')
     parser.add_argument('--record', metavar='DIR|FILE.mcap', default=None,
                         help='record the run: a rosbag2 bag folder DIR (metadata.yaml + MCAP), or one FILE.mcap')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
