@@ -184,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
 
         stop_sent_at = last_stop = None
         code = None
+        failed_start = False
         while True:
             executor.spin_once(timeout_sec=0.02)
             runtime.reap()
@@ -195,8 +196,11 @@ def main(argv: list[str] | None = None) -> int:
                 running_since = time.monotonic()
             due = args.duration is not None and running_since is not None \
                 and time.monotonic() - running_since >= args.duration
-            # a failure on the way to Running: stop what was started, in order
-            failed_start = running_since is None and outcome.went_through_safety
+            # a failure on the way to Running (a composite was in Safety before the root was seen
+            # running: e.g. a fault at the first tick, whose Safety overtakes the children's
+            # Running notifications): stop what was started, in order
+            failed_start = failed_start or outcome.went_through_safety and (
+                running_since is None or min(outcome.in_safety.values()) <= running_since)
             if stop_sent_at is None and (stop_requested or due or failed_start):
                 raiser.raise_event(f'e_{root.name}_stop')
                 stop_sent_at = last_stop = time.monotonic()
@@ -219,12 +223,12 @@ def main(argv: list[str] | None = None) -> int:
         for warning in warnings:
             trace.write(f'warning: {warning}')
             print(f'warning: {warning}', file=sys.stderr)
-        how = 'signal ' + stop_requested[0] if stop_requested else 'duration' if running_since else 'failed to start'
+        how = 'failed to start' if failed_start else 'signal ' + stop_requested[0] if stop_requested else 'duration'
         if code == EXIT_ERROR:
             how = 'did not stop in time'
         elif outcome.went_through_safety:
             how += ', went through Safety'
-        code = outcome.exit_code(reached_running=running_since is not None) if code is None else code
+        code = outcome.exit_code(reached_running=not failed_start) if code is None else code
         _finish(console, args, facts=facts, app=root.name, how=how, exit_code=code, trace=trace,
                 safety=outcome.safety_line() if outcome.went_through_safety else None,
                 running_for=ran_for,
