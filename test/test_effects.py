@@ -245,16 +245,19 @@ class _nothing:
 # -- a failure on the way to Running ends the start, in order, with the cause -----------------------
 
 def test_a_failure_before_running_stops_what_was_started_and_exits_2_with_the_cause(tmp_path):
+    """A Configurator refuses the initial configuration of a task (a gain its controller rejects):
+    the run ends at once, in order, with the cause, and exits 2."""
     mcap = tmp_path / 'run.mcap'
-    with Spawned([*BOOTSTRAP, str(MODELS / 'infeasible_at_start.yaml'), '--record', str(mcap)]) as app:
+    with Spawned([*BOOTSTRAP, str(MODELS / 'configurator_fails.yaml'), '--record', str(mcap)]) as app:
         line = app.wait_for_line('SAFETY:', timeout=60)
-        assert 'infeasible problem' in line and '/infeasible_at_start/itasc/Solver' in line, line
+        assert 'e_track_configure_failed from /app/program/track/configurator' in line, line
+        assert 'kp must be >= 0' in line, line
         start = time.monotonic()
         assert app.finish(timeout=30) == 2, app.output()
         assert time.monotonic() - start < 10.0
     assert 'stopped (failed to start' in app.out
     run = Recording(mcap)
-    for namespace in ('/infeasible_at_start', '/infeasible_at_start/itasc', '/infeasible_at_start/itasc/StayClose'):
+    for namespace in ('/app', '/app/program', '/app/program/track'):
         states = run.states(namespace)
-        assert not any(s.startswith('Active.Run.Running') for s in states[:-1] if namespace == '/infeasible_at_start')
+        assert not any(s.startswith('Active.Run') for s in states), (namespace, states)
         assert states[-1] == 'Active.Stop.Stopped.NotifyStopped', (namespace, states)
