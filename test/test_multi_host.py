@@ -134,12 +134,10 @@ def test_a_host_that_drops_off_the_network_puts_the_application_in_safety(machin
         app.wait_for_line('[state] app: Active.Run.Running', timeout=60)
         unplugged = time.monotonic()
         _ip('-n', agent_ns, 'link', 'set', f'it{os.getpid()}a', 'down')  # the cable is pulled
-        safety = app.wait_for_line('SAFETY:', timeout=30)
+        safety = app.wait_for_line('SAFETY:', timeout=15)
         noticed = time.monotonic() - unplugged
         assert "process of composite program is lost: host agent 'second' silent" in safety, safety
-        # LOST_AFTER is 2 s, and runs alone notice it within 5 s; in full-suite runs it took 9-12 s
-        # (cause not found yet): the bound only asserts the loss is noticed, not how fast
-        assert noticed < 25.0, f'the lost host was noticed after {noticed:.1f} s'
+        assert noticed < 3.5, f'the lost host was noticed after {noticed:.1f} s'  # LOST_AFTER is 2 s
         # the agent, no longer held by the parent, ends the orphaned composite
         agent.wait_for_line('host_agent second: /app/program lost its parent; killed', timeout=15)
         app.send_signal(signal.SIGINT)
