@@ -329,6 +329,33 @@ application:
     assert state.position[3] == pytest.approx(-1.0)
 
 
+def test_a_driver_watchdog_does_not_count_the_time_its_process_did_not_run(world):
+    """A busy executor (destroying a composite's nodes, say) runs the next tick before it takes the
+    joint states that arrived meanwhile: that pause is not the driver's silence. A driver that is
+    really silent while the process runs is still reported within the timeout."""
+    from itasc_core.computation.monitor import Monitor
+    from itasc_drivers.ports import driver_ports
+
+    spec = next(p for p in driver_ports('panda') if p.name == 'joint_state')
+    monitor = world.add(Monitor('Driver_panda_silent', composite=world.ctx, watch=spec, parameters={
+        'condition': 'stale', 'timeout': 0.25, 'event': 'e_emergency'}))
+    state = JointState(name=PANDA, position=PANDA_READY)
+    for _ in range(5):  # a driver reporting at 100 Hz
+        monitor.inputs['watch'].deliver(state, 'driver')
+        monitor.update(0.0)
+        time.sleep(0.01)
+    time.sleep(0.4)  # the process is busy; the driver's samples wait in the queue
+    monitor.update(0.0)  # the tick comes first
+    monitor.inputs['watch'].deliver(state, 'driver')
+    monitor.update(0.0)
+    assert monitor.raised == 0
+    silent_since = time.monotonic()
+    while monitor.raised == 0 and time.monotonic() - silent_since < 2.0:
+        monitor.update(0.0)
+        time.sleep(0.01)
+    assert monitor.raised == 1 and 0.25 <= time.monotonic() - silent_since < 0.4
+
+
 def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
     sensor = world.entity(PoseSensor, 'Sensor_cup', object='cup', topic=f'{world.ctx.namespace}/cup_pose')
     scene = world.entity(SceneEntity, 'Scene', robots=[flow({'name': 'panda', 'urdf': URDF})],
