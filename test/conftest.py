@@ -92,6 +92,18 @@ def no_dds_participant_left():
         assert left <= 0, f'this test left {left} DDS participant(s) alive: nodes not destroyed'
 
 
+@pytest.fixture
+def context():
+    """A ROS context of the test's own, shut down after it (its nodes are the test's to destroy)."""
+    import rclpy
+    from rclpy.context import Context
+
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
 @pytest.fixture(scope='session')
 def repo_root() -> pathlib.Path:
     """Absolute path of the repository root."""

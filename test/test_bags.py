@@ -9,29 +9,14 @@ import time
 
 import pytest
 import yaml
+from ros_client import spin_until
 
 import rclpy
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 REFERENCE = pathlib.Path(__file__).parent / 'data' / 'rosbag2_jazzy_metadata.yaml'
 N = 25
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
-def _spin_until(executor, condition, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end and not condition():
-        executor.spin_once(timeout_sec=0.02)
-    return condition()
 
 
 def _record(context, path: pathlib.Path) -> dict[str, str]:
@@ -56,14 +41,14 @@ def _record(context, path: pathlib.Path) -> dict[str, str]:
     executor.add_node(app)
     executor.add_node(recorder)
     try:
-        assert _spin_until(executor, lambda: joints.get_subscription_count() and events.get_subscription_count()
+        assert spin_until(executor, lambda: joints.get_subscription_count() and events.get_subscription_count()
                            and recorder.counts.get('/app/state') == 1, 10.0), recorder.topics
         for i in range(N):
             joints.publish(JointState(name=['j1'], position=[0.1 * i]))
             events.publish(Event(name=f'e_{i}', seq=i + 1))
             executor.spin_once(timeout_sec=0.0)
             time.sleep(0.01)
-        assert _spin_until(executor, lambda: recorder.counts['/app/robot/joint_states'] == N
+        assert spin_until(executor, lambda: recorder.counts['/app/robot/joint_states'] == N
                            and recorder.counts['/app/events'] == N, 10.0), recorder.counts
         assert recorder.last('/app/events').name == f'e_{N - 1}'
         assert recorder.last('/app/state').state == 'Active.Run.Running'

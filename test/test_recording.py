@@ -10,11 +10,11 @@ import time
 
 import pytest
 from processes import Spawned
+from ros_client import spin_until
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 101))  # conftest.py normally sets it
 
 import rclpy  # noqa: E402
-from rclpy.context import Context  # noqa: E402
 from rclpy.duration import Duration  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
@@ -22,23 +22,6 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 REPO = pathlib.Path(__file__).resolve().parent.parent
 N_JOINT_STATES = 40
 N_EVENTS = 15
-
-
-def _spin_until(executor, condition, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if condition():
-            return True
-        executor.spin_once(timeout_sec=0.02)
-    return condition()
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _read_all(path: pathlib.Path):
@@ -75,21 +58,24 @@ def test_recorder_records_every_topic_under_prefix(context, tmp_path):
     executor.add_node(app)
     executor.add_node(recorder)
     try:
-        assert _spin_until(executor, lambda: joints.get_subscription_count() >= 1
+        assert spin_until(executor, lambda: joints.get_subscription_count() >= 1
                            and events.get_subscription_count() >= 1
                            and recorder.counts.get('/app/itasc/state', 0) == 1, 5.0), \
             f'recorder did not discover the topics: {recorder.topics}'
+        sent = []  # (before, after) each joint state's publish call
         for i in range(max(N_JOINT_STATES, N_EVENTS)):
             if i < N_JOINT_STATES:
+                sent.append([time.time_ns()])
                 joints.publish(JointState(name=['j1', 'j2'], position=[0.01 * i, -0.01 * i],
                                           velocity=[0.1, 0.2]))
+                sent[-1].append(time.time_ns())
             if i < N_EVENTS:
                 events.publish(Event(source='/app/itasc/coordinator', name=f'e_step_{i}',
                                      seq=i + 1, priority=(i % 2 == 0)))
             outside.publish(String(data='not mine'))
             executor.spin_once(timeout_sec=0.0)
             time.sleep(0.02)
-        assert _spin_until(executor, lambda: recorder.counts['/app/robot/joint_states']
+        assert spin_until(executor, lambda: recorder.counts['/app/robot/joint_states']
                            == N_JOINT_STATES
                            and recorder.counts['/app/itasc/events'] == N_EVENTS, 5.0), \
             recorder.counts
@@ -132,6 +118,10 @@ def test_recorder_records_every_topic_under_prefix(context, tmp_path):
         reader = make_reader(f)
         assert reader.get_header().profile == 'ros2'
         summary = reader.get_summary()
+        joint_states = [m for _, c, m in reader.iter_messages(topics=['/app/robot/joint_states'])]
+    # as rosbag2 records it: the publish time is the publisher's send time, the log time when it was received
+    assert all(before <= m.publish_time <= after and m.publish_time <= m.log_time
+               for m, (before, after) in zip(joint_states, sent, strict=True))
     for channel in summary.channels.values():
         assert channel.message_encoding == 'cdr'
         assert 'reliability: reliable' in channel.metadata['offered_qos_profiles']
@@ -203,7 +193,7 @@ def test_signalled_recorder_leaves_a_readable_file(tmp_path, variant, signum, co
     try:
         with Spawned([sys.executable, '-c', _PUBLISHER, str(path), variant]) as proc:
             # wait until the other process records what we publish
-            assert _spin_until(executor, lambda: pub.get_subscription_count() >= 1, 20.0), \
+            assert spin_until(executor, lambda: pub.get_subscription_count() >= 1, 20.0), \
                 'recorder process never subscribed\n' + proc.output()
             for _ in range(20):
                 pub.publish(JointState(name=['k'], position=[2.0]))
@@ -254,7 +244,7 @@ def test_a_port_written_as_soon_as_it_exists_is_recorded_from_its_first_sample(c
                                          id='/app/plant/state'))
         port.write(Float64MultiArray(data=[1.0]))  # the first tick, at once
         port.write(Float64MultiArray(data=[2.0]))
-        assert _spin_until(executor, lambda: recorder.counts['/app/plant/state'] == 2, 5.0), recorder.counts
+        assert spin_until(executor, lambda: recorder.counts['/app/plant/state'] == 2, 5.0), recorder.counts
         assert recorder.last('/app/plant/state').data.tolist() == [2.0]
     finally:
         executor.shutdown()

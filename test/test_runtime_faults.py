@@ -14,26 +14,14 @@ import os
 import signal
 import sys
 import time
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 from processes import Spawned, started_here
 from ros_client import ros_node
-from rosbags.highlevel import AnyReader
+from recordings import read_recording
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
-
-
-def read(path: Path, *topics: str) -> dict[str, list]:
-    out: dict[str, list] = defaultdict(list)
-    with AnyReader([path]) as reader:
-        connections = [c for c in reader.connections if not topics or c.topic in topics]
-        for connection, log_time, raw in reader.messages(connections):
-            msg = reader.deserialize(raw, connection.msgtype)
-            msg._log = log_time * 1e-9
-            out[connection.topic].append(msg)
-    return out
 
 
 def seconds(stamp) -> float:
@@ -55,16 +43,16 @@ def test_a_killed_composite_process_is_detected_within_100_ms_and_the_robot_held
         time.sleep(1.0)  # a second of Safety
         os.killpg(app.process.pid, signal.SIGINT)
         assert app.finish(timeout=60) == 3, app.output()
-    run = read(mcap)
+    run = read_recording(mcap)
     died = [m for m in run['/approach_object/itasc/events']
             if m.name == 'e_emergency' and 'process of composite ApproachObject died' in m.detail]
     assert len(died) == 1, [m.detail for m in run['/approach_object/itasc/events'] if m.name == 'e_emergency']
     latency = seconds(died[0].stamp) - killed_at
     assert 0 <= latency < 0.1, f'detected {latency * 1000:.1f} ms after the kill'
     root = run['/approach_object/state']
-    safety = next(m._log for m in root if m.state == 'Safety')
-    stopping = next(m._log for m in root if m.state == 'Active.Stop.Stopping')
-    held = [m for m in run['/approach_object/Driver_panda/joint_state'] if safety + 0.05 < m._log < stopping]
+    safety = next(m._sent for m in root if m.state == 'Safety')
+    stopping = next(m._sent for m in root if m.state == 'Active.Stop.Stopping')
+    held = [m for m in run['/approach_object/Driver_panda/joint_state'] if safety + 0.05 < m._sent < stopping]
     assert len(held) > 50 and all(not np.any(m.velocity) for m in held)
     assert all(np.array_equal(m.position, held[0].position) for m in held)
 
@@ -108,7 +96,7 @@ def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
         assert app.finish(timeout=120) == 0, app.output()
     assert elapsed < seconds_ * 1.2, f'could only send {total} events in {elapsed:.1f} s'
     assert 'lost events' not in app.err, app.err[-2000:]
-    events = [m for m in read(mcap, '/app/program/events')['/app/program/events'] if m.name == 'e_storm']
+    events = [m for m in read_recording(mcap, '/app/program/events')['/app/program/events'] if m.name == 'e_storm']
     assert len(events) == total, f'{total - len(events)} of {total} events lost'
     for i in range(sources):
         seqs = [m.seq for m in events if m.source == f'/storm/source{i}']

@@ -62,6 +62,7 @@ class RunOutcome:
         self.stopped_on_behalf: set[str] = set()
         #: composites seen in Safety, with the time each was first seen there
         self.in_safety: dict[str, float] = {}
+        self._safety_told = False
         self._listener = EventListener(
             node, topics=[events_topic(ns) for ns in composites.values()], immediate=True,
             on_priority=self._on_event)
@@ -92,6 +93,18 @@ class RunOutcome:
         first = min(self.in_safety, key=self.in_safety.get) if self.in_safety else '?'
         reason = self.reason()
         return f'SAFETY: {first} entered Safety <- {reason if reason else "no fault event was seen"}'
+
+    def new_safety_line(self) -> str | None:
+        """The Safety line the first time it is asked for once the run is in Safety, else None
+        (a console says why exactly once)."""
+        if not self.in_safety or self._safety_told:
+            return None
+        self._safety_told = True
+        return self.safety_line()
+
+    def rate_text(self, rate: float) -> str:
+        """The achieved rate as a console shows it: nothing runs in Safety."""
+        return '- (Safety: nothing runs)' if self.in_safety else f'{rate:.1f} Hz'
 
     def warnings(self) -> Iterable[str]:
         """Faults that did not end in Safety (e.g. a refused connection that was retried)."""

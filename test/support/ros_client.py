@@ -12,7 +12,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-__all__ = ['ros_node', 'get_parameter', 'call']
+__all__ = ['ros_node', 'get_parameter', 'call', 'spin_until']
 
 
 @contextmanager
@@ -29,6 +29,16 @@ def ros_node(name: str = 'test_client') -> Iterator[tuple[Node, SingleThreadedEx
         node.destroy_node()
         executor.shutdown()
         rclpy.try_shutdown(context=context)
+
+
+def spin_until(executor, condition, timeout: float) -> bool:
+    """Spin ``executor`` until ``condition()`` holds; whether it did within ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        executor.spin_once(timeout_sec=0.02)
+    return condition()
 
 
 def call(node: Node, executor, srv_type, service: str, request, *, timeout: float = 10.0) -> Any:

@@ -51,7 +51,6 @@ class LiveConsole:
         self._facts, self._outcome, self._root, self._trace = facts, outcome, root, trace
         self._rate, self._target, self._elapsed, self._duration = rate, target_rate, elapsed, duration
         self._verbose, self._period = verbose, period
-        self._safety_shown = False
         self._drawn_at = 0.0
         self.console = Console(file=stream)
         self._live = Live(console=self.console, auto_refresh=False, transient=False,
@@ -67,10 +66,9 @@ class LiveConsole:
             self.console.print(line, markup=False, highlight=False)
 
     def show_safety(self) -> None:
-        if self._safety_shown or not self._outcome.went_through_safety:
+        line = self._outcome.new_safety_line()
+        if line is None:
             return
-        self._safety_shown = True
-        line = self._outcome.safety_line()
         self._trace.write(line)
         self.console.print(Text(line, style='bold red'))
         self._live.refresh()
@@ -154,5 +152,5 @@ class LiveConsole:
         ticks = (f'tick p50 {recent[len(recent) // 2] * 1e3:.2f} ms, p99 '
                  f'{recent[min(len(recent) - 1, int(0.99 * len(recent)))] * 1e3:.2f} ms') if recent else 'no ticks yet'
         solver = f', solver {self._facts.solver_status}' if self._facts.solver_status else ''
-        rate = '- (Safety: nothing runs)' if self._outcome.went_through_safety else f'{self._rate():.1f} Hz'
+        rate = self._outcome.rate_text(self._rate())
         return Text(f'rate {rate} (target {self._target:g}), {ticks}{solver}', style='dim')

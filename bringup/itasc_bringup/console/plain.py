@@ -58,7 +58,6 @@ class PlainConsole:
         self._facts, self._outcome, self._root, self._trace = facts, outcome, root, trace
         self._rate, self._verbose, self._stream = rate, verbose, stream
         self._previous: dict[str, str] = {}
-        self._safety_shown = False
         self._last_status, self._last_status_at = '', 0.0
 
     def _print(self, line: str) -> None:
@@ -75,10 +74,9 @@ class PlainConsole:
 
     def show_safety(self) -> None:
         """Say once, on one line starting with ``SAFETY:``, why the run went to Safety."""
-        if self._safety_shown or not self._outcome.went_through_safety:
+        line = self._outcome.new_safety_line()
+        if line is None:
             return
-        self._safety_shown = True
-        line = self._outcome.safety_line()
         self._trace.write(line)
         self._print(line)
 
@@ -86,7 +84,7 @@ class PlainConsole:
         """With ``--verbose``: a ``[status]`` line at most once a second, when it changed."""
         if not self._verbose:
             return
-        rate = '- (Safety: nothing runs)' if self._outcome.went_through_safety else f'{self._rate():.1f} Hz'
+        rate = self._outcome.rate_text(self._rate())
         status = ' | '.join([f'rate {rate}'] + [f'{name} {task_figure(self._facts, name)}'
                                                   for name in self._facts.tasks])
         now = time.monotonic()

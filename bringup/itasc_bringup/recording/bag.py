@@ -137,8 +137,12 @@ class BagWriter:
                                     'type_description_hash': digest, 'message_count': 0}
         return channel_id
 
-    def write(self, channel_id: int, data: bytes, *, time_ns: int) -> None:
-        self._writer.add_message(channel_id, log_time=time_ns, data=data, publish_time=time_ns)
+    def write(self, channel_id: int, data: bytes, *, time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Write one message received at ``time_ns`` (the MCAP log time) and sent at
+        ``publish_time_ns`` (the publisher's DDS source timestamp, as rosbag2 records it; the
+        receive time when unknown)."""
+        self._writer.add_message(channel_id, log_time=time_ns, data=data,
+                                 publish_time=time_ns if publish_time_ns is None else publish_time_ns)
         self._topics[channel_id]['message_count'] += 1
         self._start = min(self._start, time_ns)
         self._end = max(self._end, time_ns)

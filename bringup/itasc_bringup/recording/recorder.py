@@ -45,6 +45,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 
 from .bag import BagWriter
 from .definitions import DefinitionNotFound
@@ -165,12 +166,23 @@ class Recorder(Node):
         # keep-last ``depth``, whatever the caller's profile says about the queue
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(self.depth, qos.depth),
                          reliability=qos.reliability, durability=qos.durability)
-        callback = functools.partial(self._write, topic, channel_id)
-        self.create_subscription(msg_class, topic, callback, qos, raw=True)
+        subscription = self.create_subscription(msg_class, topic, functools.partial(self._received, topic, channel_id),
+                                                 qos, raw=True)
+        # the callback takes the message info too (its signature alone can't say so: see _received)
+        subscription._callback_type = Subscription.CallbackType.WithMessageInfo
         self.get_logger().debug(f'recording {topic} ({type_name})')
 
     # ----------------------------------------------------------------- writing
-    def _write(self, topic: str, channel_id: int, data: bytes) -> None:
+    def _received(self, topic: str, channel_id: int, *received: Any) -> None:
+        # rclpy's executors pass (message, info); Jazzy's EventsExecutor passes the pair as one
+        # argument (events_executor.cpp: ``callback(msg_info)``)
+        data, info = received if len(received) == 2 else received[0]
+        self._write(topic, channel_id, data, sent=info.get('source_timestamp') or None)
+
+    def _write(self, topic: str, channel_id: int, data: bytes, *, sent: int | None) -> None:
+        """Write ``data`` received now and sent at ``sent`` (the publisher's DDS source timestamp,
+        ns): a reader orders messages of different topics by it, since a busy recorder may take
+        one topic's messages later than another's."""
         stamp = time.time_ns()
         data = bytes(data)
         with self._lock:
@@ -178,7 +190,7 @@ class Recorder(Node):
                 return
             self._owner = threading.get_ident()
             try:
-                self._bag.write(channel_id, data, time_ns=stamp)
+                self._bag.write(channel_id, data, time_ns=stamp, publish_time_ns=sent)
                 self.counts[topic] += 1
                 self._last[topic] = data
             finally:

@@ -14,7 +14,7 @@ from typing import Iterable
 
 from itasc_msgs.msg import CoordinatorState
 
-from ..communication.event_names import from_parent, is_addressed_to, is_priority
+from ..communication.event_names import from_parent, is_addressed_to
 from ..communication.events import EventListener, EventRaiser
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
@@ -113,7 +113,7 @@ class Coordinator(Entity):
 
     def _raise(self, name: str, to_parent: bool) -> None:
         raiser = self._to_parent if to_parent else self._raiser
-        raiser.raise_event(name, priority=is_priority(name))
+        raiser.raise_event(name)  # the raiser marks priority events (event_names.is_priority)
 
     def _publish_state(self, state: str, previous: str, event: str) -> None:
         self._entered_at = time.monotonic()
