@@ -2,11 +2,9 @@
 its parent within 100 ms and the robot is held; an event storm across one composite for 10 s loses
 nothing, keeps each source's order and does not grow memory.
 
-The storm's rate: issue #8 asks for 10,000 events/s. A Python publisher reaches about 1,500-2,500
-events/s on this 2-core machine, because every co-located entity of the composite (Coordinator,
-Composer, Configurator, Scheduler, Monitors, recorder, console) holds a DDS reader of its own on the
-event topic, so each event is sent about seven times. The test runs at ``ITASC_STORM_RATE``
-(default 2,000/s) and checks the publisher kept that rate."""
+The storm runs at 10,000 events/s (``ITASC_STORM_RATE`` sets another rate), and the publisher
+must keep that rate: the bootstrap process reads the topic once for all its entities (its event
+hub) and once for the recorder, and its socket buffers hold the bursts (itasc_core.communication.dds)."""
 
 from __future__ import annotations
 
@@ -66,7 +64,7 @@ def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
     from itasc_core.communication.events import EventRaiser
 
     mcap = tmp_path / 'storm.mcap'
-    rate, seconds_, sources = int(os.environ.get("ITASC_STORM_RATE", 2_000)), 10.0, 2
+    rate, seconds_, sources = int(os.environ.get("ITASC_STORM_RATE", 10_000)), 10.0, 2
     with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
         app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
         with ros_node('storm') as (node, executor):
@@ -74,7 +72,7 @@ def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
                        for i in range(sources)]
             def matched() -> bool:  # every reader of the topic (Coordinator, ..., recorder) matched
                 readers = node.count_subscribers('/app/program/events')
-                return readers >= 4 and all(r.publisher.get_subscription_count() == readers for r in raisers)
+                return readers >= 2 and all(r.publisher.get_subscription_count() == readers for r in raisers)
 
             deadline = time.monotonic() + 10
             while not matched() and time.monotonic() < deadline:

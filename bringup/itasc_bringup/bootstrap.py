@@ -128,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
-    runtime = Runtime(executor=executor, mode=args.deploy)
     root = CompositeContext(name=model.name, namespace=f'/{model.name}')
+    runtime = Runtime(executor=executor, mode=args.deploy, namespace=root.namespace)
     node = rclpy.create_node('bootstrap', namespace=root.namespace)
     executor.add_node(node)
     recorder = None
@@ -178,8 +178,8 @@ def main(argv: list[str] | None = None) -> int:
         from .visualization import start_visualization  # robot_description, TF, markers, /diagnostics
         start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
 
-        while raiser.publisher.get_subscription_count() < 3 and not stop_requested:
-            executor.spin_once(timeout_sec=0.01)  # coordinator, composer, configurator listen
+        while raiser.publisher.get_subscription_count() < 1 and not stop_requested:
+            executor.spin_once(timeout_sec=0.01)  # the root's entities listen (this process's reader)
         raiser.raise_event(f'e_{root.name}_configure')
 
         stop_sent_at = last_stop = None

@@ -111,8 +111,10 @@ def test_stop_goes_through_stopping_and_the_four_stopped_substates(hierarchy):
         assert hierarchy.states(composite)[len(CONFIGURE_TO_RUNNING):] == STOP, composite
     hierarchy.spin_for(0.1)
     remaining = [n.get_fully_qualified_name() for n in hierarchy.executor.get_nodes()]
-    # Only the root's Coordinator, Composer and Configurator remain, for the bootstrap to destroy.
-    assert sorted(remaining) == ['/root/composer', '/root/configurator', '/root/coordinator', '/root/test_driver']
+    # Only the root's Coordinator, Composer and Configurator remain, for the bootstrap to destroy,
+    # and the process's event hub
+    assert sorted(remaining) == ['/root/_event_hub', '/root/composer', '/root/configurator', '/root/coordinator',
+                                 '/root/test_driver']
 
 
 @pytest.mark.parametrize('hierarchy', [model(safety={'raise_to_parent': ['e_program_fault']})], indirect=True)

@@ -22,8 +22,8 @@ class Hierarchy:
         self.model = CompositeModel.model_validate(model)
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         self.executor = make_executor()
-        self.runtime = Runtime(executor=self.executor)
         self.root = CompositeContext(name=self.model.name, namespace=f'/{self.model.name}')
+        self.runtime = Runtime(executor=self.executor, namespace=self.root.namespace)
         self.node = rclpy.create_node('test_driver', namespace=self.root.namespace)
         self.executor.add_node(self.node)
         self.events: list = []

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from rclpy.node import Node
 
-from .communication.events import EventRaiser, events_topic
+from .communication.events import EventListener, EventRaiser, events_topic
 
 __all__ = ['CompositeContext', 'Entity']
 
@@ -52,6 +52,13 @@ class Entity(Node):
         self.composite = composite
         self.entity_name = name
         self._raiser = EventRaiser(self, topic=composite.events_topic)
+        self._listeners: list[EventListener] = []
+
+    def listen(self, **listener_kwargs) -> EventListener:
+        """An :class:`EventListener` of this entity's, destroyed with it."""
+        listener = EventListener(self, **listener_kwargs)
+        self._listeners.append(listener)
+        return listener
 
     def raise_event(self, name: str, *, priority: bool = False, detail: str = '') -> None:
         self._raiser.raise_event(name, priority=priority, detail=detail)
@@ -59,3 +66,9 @@ class Entity(Node):
     @property
     def event_publisher(self):
         return self._raiser.publisher
+
+    def destroy_node(self) -> None:
+        for listener in self._listeners:
+            listener.destroy()
+        self._listeners.clear()
+        super().destroy_node()

@@ -15,6 +15,7 @@ from rclpy.node import Node
 
 from itasc_msgs.msg import Event
 
+from .event_hub import EventHub
 from .event_names import is_priority
 from .qos import EVENT_QOS
 
@@ -65,6 +66,10 @@ class EventListener:
     Sequence numbers are checked per source: a gap is counted in :attr:`lost` and reported through
     ``on_gap`` (it cannot happen with the reliable, keep-all QoS unless a publisher was destroyed
     with events still in flight).
+
+    In a process with an :class:`~.event_hub.EventHub` the listener shares the process's reader of
+    each topic; otherwise it subscribes on ``node``. :meth:`destroy` ends the listening (an
+    :class:`~itasc_core.entity.Entity` destroys its listeners with itself).
     """
 
     def __init__(
@@ -84,15 +89,29 @@ class EventListener:
         self._on_gap = on_gap
         self._immediate = immediate
         self.lost = 0
-        self._subscriptions = [
-            node.create_subscription(
-                Event, topic, lambda msg, topic=topic: self._receive(msg, topic), EVENT_QOS)
-            for topic in topics
-        ]
+        self._node = node
+        self._topics = list(topics)
+        self._hub = EventHub.of(node.context)
+        if self._hub is not None:
+            for topic in self._topics:
+                self._hub.add(topic, self._receive)
+            self._subscriptions = []
+        else:
+            self._subscriptions = [
+                node.create_subscription(
+                    Event, topic, lambda msg, topic=topic: self._receive(msg, topic), EVENT_QOS)
+                for topic in self._topics
+            ]
 
-    @property
-    def subscriptions(self):
-        return list(self._subscriptions)
+    def destroy(self) -> None:
+        """Stop listening (idempotent)."""
+        if self._hub is not None:
+            for topic in self._topics:
+                self._hub.remove(topic, self._receive)
+            self._hub = None
+        for subscription in self._subscriptions:
+            self._node.destroy_subscription(subscription)
+        self._subscriptions = []
 
     def _receive(self, msg: Event, topic: str) -> None:
         key = (msg.source, topic)

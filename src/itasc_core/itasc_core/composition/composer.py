@@ -25,7 +25,8 @@ from __future__ import annotations
 import threading
 import traceback
 
-from ..communication.events import EventListener, EventRaiser, events_topic
+from ..communication.event_hub import EventHub
+from ..communication.events import EventRaiser, events_topic
 from ..communication.ports import SemanticMismatch, check_connection
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
@@ -110,7 +111,7 @@ class Composer(Entity):
         }
         for step in model.composition_steps:
             self._steps[f'e_{c}_compose_{step}'] = lambda step=step: self.compose(step)
-        self._events = EventListener(self, topics=[context.events_topic], on_priority=self._on_event,
+        self._events = self.listen(topics=[context.events_topic], on_priority=self._on_event,
                                      accept=self._accepts, immediate=True)
 
     # -- events -------------------------------------------------------------------------------------
@@ -173,8 +174,9 @@ class Composer(Entity):
         self._await_remote_children()
 
     def _await_remote_children(self, *, timeout: float = 30.0) -> None:
-        """Report deployed once every child process's Coordinator listens to and talks on our
-        event topic, so that no command to it can be lost to DDS discovery."""
+        """Report deployed once every child process listens to our event topic (its event hub, on
+        behalf of the child's Coordinator) and its Coordinator talks on it, so that no command to
+        it can be lost to DDS discovery."""
         remote = [self.composite.child(name).namespace for name, c in self.children.items() if c is None]
         c = self.composite.name
         if not remote:
@@ -183,13 +185,14 @@ class Composer(Entity):
         deadline = self.get_clock().now().nanoseconds + int(timeout * 1e9)
         topic = self.composite.events_topic
 
-        def ready(infos, namespace: str) -> bool:
-            return any(i.node_name == 'coordinator' and i.node_namespace == namespace for i in infos)
+        def ready(infos, node: str, namespace: str) -> bool:
+            return any(i.node_name == node and i.node_namespace == namespace for i in infos)
 
         def poll() -> None:
             subscribers = self.get_subscriptions_info_by_topic(topic)
             publishers = self.get_publishers_info_by_topic(topic)
-            if all(ready(subscribers, ns) and ready(publishers, ns) for ns in remote):
+            if all(ready(subscribers, EventHub.NODE_NAME, ns) and ready(publishers, 'coordinator', ns)
+                   for ns in remote):
                 self.destroy_timer(timer)
                 self.raise_event(f'e_{c}_deployed')
             elif self.get_clock().now().nanoseconds > deadline:

@@ -7,7 +7,8 @@ parent's Composer (:mod:`.host`), and everything it exchanges with its parent tr
 A composite placed on another host (``host:`` in the model) gets a process of its own there,
 whatever the mode: the host agent of that name starts it (:mod:`.host_agent`, :mod:`.remote`).
 This process's host is ``host`` (default ``$ITASC_HOST``; unset: composites placed on any host run
-elsewhere). Nodes are destroyed between executor spins, never from inside a callback.
+elsewhere). Nodes are destroyed between executor spins, never from inside a callback. The
+process's entities share one reader per event topic (:class:`~..communication.event_hub.EventHub`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Iterable, Literal
 
 from rclpy.node import Node
 
+from ..communication.event_hub import EventHub
 from .model import CompositeModel
 from .remote import HostClient, RemoteProcess
 
@@ -64,7 +66,8 @@ def exit_reason(process: subprocess.Popen | RemoteProcess) -> str:
 class Runtime:
     """The executor of this process, the nodes on it and the composite processes it started."""
 
-    def __init__(self, *, executor, mode: DeployMode = 'single', host: str | None = None) -> None:
+    def __init__(self, *, executor, mode: DeployMode = 'single', host: str | None = None,
+                 namespace: str = '/') -> None:
         self.executor = executor
         self.mode: DeployMode = mode
         self.host = host or os.environ.get('ITASC_HOST') or None
@@ -72,6 +75,9 @@ class Runtime:
         self._processes: dict[str, subprocess.Popen | RemoteProcess] = {}
         self._spec_files: list[str] = []
         self._hosts: HostClient | None = None
+        #: the process's one reader per event topic, shared by every entity created from now on;
+        #: ``namespace``: that of the composite this process was started for
+        self.events = EventHub.install(executor, namespace=namespace)
 
     def add(self, *nodes: Node) -> None:
         for node in nodes:

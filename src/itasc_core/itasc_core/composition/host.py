@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signum, signal.SIG_IGN)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
-    runtime = Runtime(executor=executor, mode='per-composite')
+    runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace)
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     stopped_at = None
     try:

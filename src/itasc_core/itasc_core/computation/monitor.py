@@ -13,7 +13,6 @@ import time
 from dataclasses import dataclass
 from typing import Any, Iterable
 
-from ..communication.events import EventListener
 from ..communication.ports import InputPort, PortSpec
 from ..entity import CompositeContext
 from .functional_entity import FunctionalEntity
@@ -93,7 +92,7 @@ class Monitor(FunctionalEntity):
         self._last_update: float | None = None
         self._seen = 0
         self.raised = 0
-        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._switch,
+        self._events = self.listen(topics=[composite.events_topic], on_priority=self._switch,
                                      accept=self._switches)
 
     def port_specs(self, params: dict[str, Any]) -> list[PortSpec]:  # type: ignore[override]

@@ -16,7 +16,6 @@ from typing import Any, Callable
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..communication.events import EventListener
 from ..computation.functional_entity import coerce
 from ..entity import CompositeContext, Entity
 
@@ -41,7 +40,7 @@ class Configurator(Entity):
         self.initial = list(initial)
         self._entities = entities
         self.applied: list[str] = []
-        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._on_event,
+        self._events = self.listen(topics=[composite.events_topic], on_priority=self._on_event,
                                      accept=self._accepts, immediate=True)
 
     def _accepts(self, name: str) -> bool:

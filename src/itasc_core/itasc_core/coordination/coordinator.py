@@ -15,7 +15,7 @@ from typing import Iterable
 from itasc_msgs.msg import CoordinatorState
 
 from ..communication.event_names import from_parent, is_addressed_to
-from ..communication.events import EventListener, EventRaiser
+from ..communication.events import EventRaiser
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
 from .lifecycle import LifecycleFsm, RunningFsmSpec
@@ -57,10 +57,10 @@ class Coordinator(Entity):
             running=running,
             safety_to_parent=safety_to_parent,
         )
-        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._process,
+        self._events = self.listen(topics=[composite.events_topic], on_priority=self._process,
                                      accept=self._accepts, on_gap=self._gap)
-        self._parent_events = None if self.is_root else EventListener(
-            self, topics=[composite.parent_events_topic], on_priority=self._process_parent,
+        self._parent_events = None if self.is_root else self.listen(
+            topics=[composite.parent_events_topic], on_priority=self._process_parent,
             accept=self._accepts_parent, on_gap=self._gap)
         self._notifications = {f'e_{composite.name}_{n}' for n in ('configured', 'started', 'running', 'stopped')}
         self._startup_timeout = startup_timeout

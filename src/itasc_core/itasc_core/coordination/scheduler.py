@@ -20,7 +20,6 @@ from typing import Callable
 
 from std_msgs.msg import Float64
 
-from ..communication.events import EventListener
 from ..communication.qos import DATA_QOS
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
@@ -58,7 +57,7 @@ class Scheduler(Entity):
             f'e_{c}_disengage': self._disengage,
             f'e_{c}_safety': self._safety,
         }
-        self._events = EventListener(self, topics=[composite.events_topic], on_priority=self._on_event,
+        self._events = self.listen(topics=[composite.events_topic], on_priority=self._on_event,
                                      accept=self._accepts, immediate=True)
         self._trigger_sub = None
         if remote_trigger:

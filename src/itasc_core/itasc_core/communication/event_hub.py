@@ -1,0 +1,94 @@
+"""One DDS reader per event topic in a process (paper §7.2: events reach every entity of a
+composite without loss).
+
+Every entity of a composite listens to the composite's event topic. With one DDS reader per
+entity, a process hosting a composite of twenty entities takes, deserializes and dispatches every
+event twenty times: at thousands of events per second the Python callbacks alone exceed a core,
+the readers fall behind and the reliable writers of the whole application block. An
+:class:`EventHub` owns one reader per event topic and hands each event, in arrival order, to
+every listener of that topic in the process. Events still travel over DDS: anyone outside the
+process (a recorder, ``ros2 topic echo``, a composite in another process) sees all of them.
+
+The owner of a process's executor installs the hub (:meth:`EventHub.install`, done by
+:class:`~itasc_core.composition.deployment.Runtime`); an :class:`~.events.EventListener`
+created in a context without a hub subscribes on its own node as before.
+"""
+
+from __future__ import annotations
+
+import weakref
+from typing import Callable
+
+from rclpy.context import Context
+from rclpy.node import Node
+
+from itasc_msgs.msg import Event
+
+from .qos import EVENT_QOS
+
+__all__ = ['EventHub']
+
+Receiver = Callable[[Event, str], None]
+
+
+class EventHub:
+    """The event readers of one ROS context (one process), shared by all its listeners."""
+
+    _hubs: 'weakref.WeakKeyDictionary[Context, EventHub]' = weakref.WeakKeyDictionary()
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._subscriptions: dict[str, object] = {}
+        self._receivers: dict[str, list[Receiver]] = {}
+
+    #: The hub's node: hidden (``ros2 node list -a`` shows it), in the namespace of the composite
+    #: the process was started for, where a parent's Composer looks for it.
+    NODE_NAME = '_event_hub'
+
+    @classmethod
+    def install(cls, executor, *, namespace: str = '/') -> 'EventHub':
+        """Give ``executor``'s context a hub, on a hidden node in ``namespace`` spun by ``executor``."""
+        hub = cls._hubs.get(executor.context)
+        if hub is None:
+            node = Node(cls.NODE_NAME, namespace=namespace, context=executor.context)
+            executor.add_node(node)
+            hub = cls._hubs[executor.context] = cls(node)
+        return hub
+
+    @classmethod
+    def of(cls, context: Context) -> 'EventHub | None':
+        """The hub of ``context``, if its process installed one."""
+        return cls._hubs.get(context)
+
+    def add(self, topic: str, receiver: Receiver) -> None:
+        """Hand every event arriving on ``topic`` from now on to ``receiver(event, topic)``."""
+        if topic not in self._subscriptions:
+            self._receivers[topic] = []
+            self._subscriptions[topic] = self._node.create_subscription(
+                Event, topic, lambda msg, topic=topic: self._dispatch(msg, topic), EVENT_QOS)
+        self._receivers[topic].append(receiver)
+
+    def remove(self, topic: str, receiver: Receiver) -> None:
+        """Stop handing ``topic``'s events to ``receiver``; the last one gone, the reader goes too."""
+        receivers = self._receivers.get(topic, [])
+        if receiver in receivers:
+            receivers.remove(receiver)
+        if not receivers and topic in self._subscriptions:
+            self._node.destroy_subscription(self._subscriptions.pop(topic))
+            del self._receivers[topic]
+
+    def _dispatch(self, msg: Event, topic: str) -> None:
+        # a copy: a receiver may create or destroy entities (and their listeners) on an event
+        receivers = self._receivers.get(topic, [])
+        for receiver in list(receivers):
+            if receiver in receivers:
+                receiver(msg, topic)
+
+    def destroy(self) -> None:
+        """Remove the hub and its node (the process's teardown)."""
+        if self._hubs.get(self._node.context) is self:
+            del self._hubs[self._node.context]
+        executor = self._node.executor
+        if executor is not None:
+            executor.remove_node(self._node)
+        self._node.destroy_node()

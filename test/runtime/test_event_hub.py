@@ -1,0 +1,88 @@
+"""The process's event hub (itasc_core.communication.event_hub): the entities of a process share
+one DDS reader per event topic, each still gets every event in order, and a destroyed entity
+gets none and leaves no reader behind."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import rclpy
+from rclpy.signals import SignalHandlerOptions
+
+from itasc_core.communication.events import EventRaiser
+from itasc_core.composition.deployment import Runtime, make_executor
+from itasc_core.entity import CompositeContext, Entity
+from ros_teardown import destroy_all
+
+TOPIC = '/hub/events'
+
+
+@pytest.fixture
+def world():
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    executor = make_executor()
+    runtime = Runtime(executor=executor, namespace='/hub')
+    source = rclpy.create_node('source', namespace='/elsewhere')
+    executor.add_node(source)
+    yield executor, runtime, source
+    destroy_all(executor)
+
+
+def spin_until(executor, condition, timeout: float = 10.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not condition():
+        executor.spin_once(timeout_sec=0.01)
+    return condition()
+
+
+def test_entities_of_a_process_share_one_reader_and_each_gets_every_event_in_order(world):
+    executor, runtime, source = world
+    composite = CompositeContext(name='hub', namespace='/hub')
+    received: dict[str, list] = {}
+    entities = []
+    for i in range(5):
+        entity = Entity(f'entity_{i}', composite=composite)
+        entity.listen(topics=[TOPIC], immediate=True, on_priority=received.setdefault(entity.entity_name, []).append)
+        runtime.add(entity)
+        entities.append(entity)
+    assert source.count_subscribers(TOPIC) == 1, 'five listeners, one DDS reader'
+    raiser = EventRaiser(source, topic=TOPIC)
+    assert spin_until(executor, lambda: raiser.publisher.get_subscription_count() == 1)
+    for n in range(200):
+        raiser.raise_event(f'e_{n}')
+    assert spin_until(executor, lambda: all(len(r) == 200 for r in received.values())), \
+        {name: len(r) for name, r in received.items()}
+    for events in received.values():
+        assert [m.seq for m in events] == list(range(1, 201))
+
+    # a destroyed entity gets nothing more; the others still get everything
+    gone = entities.pop()
+    runtime.retire([gone])
+    runtime.reap()
+    raiser.raise_event('e_after')
+    assert spin_until(executor, lambda: all(len(received[e.entity_name]) == 201 for e in entities))
+    assert len(received[gone.entity_name]) == 200
+
+    # the last listener gone, the process no longer reads the topic at all
+    runtime.retire(entities)
+    runtime.reap()
+    assert spin_until(executor, lambda: raiser.publisher.get_subscription_count() == 0)
+    assert source.count_subscribers(TOPIC) == 0
+
+
+def test_an_entity_destroyed_by_an_earlier_listener_of_the_same_event_is_not_called(world):
+    executor, runtime, source = world
+    composite = CompositeContext(name='hub', namespace='/hub')
+    first, second = Entity('first', composite=composite), Entity('second', composite=composite)
+    heard: list[str] = []
+    # the first listener ends the second one's listening while the event is being handed out
+    first.listen(topics=[TOPIC], immediate=True, on_priority=lambda m: (heard.append('first'), second.destroy_node()))
+    second.listen(topics=[TOPIC], immediate=True, on_priority=lambda m: heard.append('second'))
+    runtime.add(first)
+    raiser = EventRaiser(source, topic=TOPIC)
+    assert spin_until(executor, lambda: raiser.publisher.get_subscription_count() == 1)
+    raiser.raise_event('e_once')
+    assert spin_until(executor, lambda: heard)
+    executor.spin_once(timeout_sec=0.1)
+    assert heard == ['first']
