@@ -4,10 +4,12 @@
 It validates the application model (a wrong model exits 2 before anything starts), brings up the
 root composite's Coordinator, Composer and Configurator (configuring the root Configurator with
 the model's configurations), commands ``e_<root>_configure`` and lets the life-cycle bring the
-hierarchy to Running. On ``--duration`` expiry, Ctrl-C or SIGTERM it raises ``e_<root>_stop`` and
-waits for the orderly Stop of the whole hierarchy, and until every composite's final state was
-seen (and recorded), then exits: 0 after an orderly stop from Running, 3 when the run ended in or
-went through Safety (the reason is printed on one line), 2 for a wrong model or a failure before
+hierarchy to Running. On ``--duration`` expiry, Ctrl-C, SIGTERM or an operator's ``~/stop`` of any
+composite (``e_stop_requested`` reaching the root) it raises ``e_<root>_stop`` and waits for the
+orderly Stop of the whole hierarchy, and until every composite's final state was seen (and
+recorded), then exits: 0 after an orderly stop from Running, 3 when the run ended in Safety (the
+reason is printed on one line), 4 when it went through Safety and an operator recovered it
+(``~/recover``) before the orderly stop from Running, 2 for a wrong model or a failure before
 Running (what was started is stopped in order first), 1 when the hierarchy did not stop in time.
 
 What it prints is :mod:`itasc_bringup.console`'s: a live view on a terminal, plain lines
@@ -52,7 +54,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         epilog=f'applications: {", ".join(apps)}\n\n{EXAMPLES}\n'
                'exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time;\n'
                '  2 wrong model (nothing was started) or a failure before Running (what was started\n'
-               '  is stopped in order); 3 the run ended in or went through Safety\n\n'
+               '  is stopped in order); 3 the run ended in Safety; 4 it went through Safety, was\n'
+               '  recovered (~/recover) and stopped in order from Running\n\n'
                'shell completion: eval "$(register-python-argcomplete bootstrap)"')
     app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     app.completer = _app_completer(apps)
@@ -124,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
 
     stop_requested: list[str] = []
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, _frame: stop_requested.append(signal.Signals(signum).name))
+        signal.signal(sig, lambda signum, _frame: stop_requested.append('signal ' + signal.Signals(signum).name))
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
@@ -187,6 +190,8 @@ def main(argv: list[str] | None = None) -> int:
         failed_start = False
         while True:
             executor.spin_once(timeout_sec=0.02)
+            if outcome.stop_request is not None and not stop_requested:  # an operator's ~/stop
+                stop_requested.append(f'~/stop: {outcome.stop_request}')
             runtime.reap()
             watch.poll_timer(composer.timer)
             console.show_safety()
@@ -223,11 +228,11 @@ def main(argv: list[str] | None = None) -> int:
         for warning in warnings:
             trace.write(f'warning: {warning}')
             print(f'warning: {warning}', file=sys.stderr)
-        how = 'failed to start' if failed_start else 'signal ' + stop_requested[0] if stop_requested else 'duration'
+        how = 'failed to start' if failed_start else stop_requested[0] if stop_requested else 'duration'
         if code == EXIT_ERROR:
             how = 'did not stop in time'
         elif outcome.went_through_safety:
-            how += ', went through Safety'
+            how += ', went through Safety' + (', recovered' if outcome.recovered else '')
         code = outcome.exit_code(reached_running=not failed_start) if code is None else code
         _finish(console, args, facts=facts, app=root.name, how=how, exit_code=code, trace=trace,
                 safety=outcome.safety_line() if outcome.went_through_safety else None,

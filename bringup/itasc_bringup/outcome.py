@@ -5,12 +5,15 @@ priority event that puts a composite in Safety), failed life-cycle steps (``_fai
 connections. The first fault whose detail says what happened is the reason of a Safety: the
 events raised on its way up the hierarchy carry no detail of their own. It also tells which
 composites a Composer stopped on behalf of a dead composite process, whose own final state can
-therefore never come.
+therefore never come; whether an operator asked for the stop (``e_stop_requested``, from any
+composite's ``~/stop``); and whether every Safety was recovered (``~/recover``: the composite
+reached Running again).
 
 Exit codes of the bootstrap: :data:`EXIT_OK` for an orderly stop from Running, :data:`EXIT_SAFETY`
-when the run ended in or went through Safety, :data:`EXIT_NOT_STARTED` for a wrong model or a
-failure before the root reached Running (what was started is stopped in order first),
-:data:`EXIT_ERROR` when the hierarchy did not stop in time.
+when the run ended in Safety (or stopped from it), :data:`EXIT_RECOVERED` when it went through
+Safety, every composite was recovered to Running, and it stopped in order from there,
+:data:`EXIT_NOT_STARTED` for a wrong model or a failure before the root reached Running (what was
+started is stopped in order first), :data:`EXIT_ERROR` when the hierarchy did not stop in time.
 """
 
 from __future__ import annotations
@@ -24,12 +27,15 @@ from rclpy.node import Node
 from itasc_core.communication.event_names import SAFETY_EVENT
 from itasc_core.communication.events import EventListener, events_topic
 
-__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY']
+__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY', 'EXIT_RECOVERED']
 
 EXIT_OK = 0
 EXIT_ERROR = 1
 EXIT_NOT_STARTED = 2
 EXIT_SAFETY = 3
+EXIT_RECOVERED = 4
+#: Raised by a Coordinator whose ``~/stop`` was called (``itasc_core.coordination.operator``).
+STOP_REQUESTED = 'e_stop_requested'
 
 
 @dataclass(frozen=True)
@@ -62,14 +68,24 @@ class RunOutcome:
         self.stopped_on_behalf: set[str] = set()
         #: composites seen in Safety, with the time each was first seen there
         self.in_safety: dict[str, float] = {}
+        #: composites in Safety that did not reach Running again since
+        self.unrecovered: set[str] = set()
+        #: how many times the run came back from Safety to Running (every composite recovered)
+        self.recoveries = 0
+        #: who asked for the stop through a ``~/stop`` service (its name), if anyone did
+        self.stop_request: str | None = None
         self._safety_told = False
+        self._episode_from = 0  # the faults of the current Safety start here
+        self._first_now: str | None = None  # the first composite in the current Safety
         self._listener = EventListener(
             node, topics=[events_topic(ns) for ns in composites.values()], immediate=True,
             on_priority=self._on_event)
 
     def _on_event(self, msg) -> None:
         composite = msg.source.rsplit('/', 2)[-2] if msg.source.count('/') >= 2 else ''
-        if _is_fault(msg.name):
+        if msg.name == STOP_REQUESTED and self.stop_request is None:
+            self.stop_request = msg.detail or msg.source
+        elif _is_fault(msg.name):
             self.faults.append(Fault(composite, msg.name, msg.source, msg.detail, time.monotonic()))
         elif msg.name.endswith('_stopped') and msg.source.endswith('/composer'):
             child = msg.name.removeprefix('e_').removesuffix('_stopped')
@@ -79,32 +95,49 @@ class RunOutcome:
     def saw_state(self, composite: str, state: str) -> None:
         if state == 'Safety':
             self.in_safety.setdefault(composite, time.monotonic())
+            if not self.unrecovered:
+                self._first_now = composite
+            self.unrecovered.add(composite)
+        elif state.startswith('Active.Run.Running') and composite in self.unrecovered:
+            self.unrecovered.discard(composite)
+            if not self.unrecovered:  # the whole run is back: a later Safety is a new one
+                self.recoveries += 1
+                self._safety_told = False
+                self._episode_from = len(self.faults)
 
     @property
     def went_through_safety(self) -> bool:
         return bool(self.in_safety)
 
+    @property
+    def recovered(self) -> bool:
+        """Went through Safety, and every composite came back to Running since."""
+        return self.went_through_safety and not self.unrecovered
+
     def reason(self) -> Fault | None:
-        """Why the run went to Safety: the first fault that says why, else the first fault."""
-        with_detail = [f for f in self.faults if f.detail]
-        return (with_detail or self.faults or [None])[0]
+        """Why the run went to Safety (the latest time): the first fault that says why, else the
+        first fault."""
+        faults = self.faults[self._episode_from:] or self.faults
+        with_detail = [f for f in faults if f.detail]
+        return (with_detail or faults or [None])[0]
 
     def safety_line(self) -> str:
-        first = min(self.in_safety, key=self.in_safety.get) if self.in_safety else '?'
+        first = self._first_now or '?'
         reason = self.reason()
-        return f'SAFETY: {first} entered Safety <- {reason if reason else "no fault event was seen"}'
+        line = f'SAFETY: {first} entered Safety <- {reason if reason else "no fault event was seen"}'
+        return line + (' (recovered)' if self.recovered else '')
 
     def new_safety_line(self) -> str | None:
         """The Safety line the first time it is asked for once the run is in Safety, else None
         (a console says why exactly once)."""
-        if not self.in_safety or self._safety_told:
+        if not self.unrecovered or self._safety_told:
             return None
         self._safety_told = True
         return self.safety_line()
 
     def rate_text(self, rate: float) -> str:
         """The achieved rate as a console shows it: nothing runs in Safety."""
-        return '- (Safety: nothing runs)' if self.in_safety else f'{rate:.1f} Hz'
+        return '- (Safety: nothing runs)' if self.unrecovered else f'{rate:.1f} Hz'
 
     def warnings(self) -> Iterable[str]:
         """Faults that did not end in Safety (e.g. a refused connection that was retried)."""
@@ -113,4 +146,6 @@ class RunOutcome:
     def exit_code(self, *, reached_running: bool) -> int:
         if not self.went_through_safety:
             return EXIT_OK  # also a stop requested before Running, in order
-        return EXIT_SAFETY if reached_running else EXIT_NOT_STARTED
+        if not reached_running:
+            return EXIT_NOT_STARTED
+        return EXIT_RECOVERED if self.recovered else EXIT_SAFETY

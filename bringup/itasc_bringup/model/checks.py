@@ -5,8 +5,9 @@ What a schema cannot see: URDF files that do not exist or do not load, link name
 not have (checked against the kinematic model Pinocchio builds), object frames and joints that no
 robot or object has, duplicate names, events the Running sub-FSM waits for that nobody raises,
 configurations, Tasks and Monitors that are not defined, Drivers and Sensors of unknown robots and
-objects. Every error is a :class:`ModelError` naming the file (the included one, if the faulty part
-came from an include), the path inside it and what was expected.
+objects, outside events of message or service types that are not installed or fields they lack.
+Every error is a :class:`ModelError` naming the file (the included one, if the faulty part came
+from an include), the path inside it and what was expected.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pinocchio as pin
+from itasc_core.composition.checks import check_outside_event
 from itasc_core.composition.loader import MAX_BYTES, ModelError, format_loc, source_of
 from itasc_core.itasc.robot import Robot as RobotModel
 
@@ -94,7 +96,8 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
            joints=[j for js in joints.values() for j in js])
     _monitors(where, program)
     _configurations(where, program)
-    _running(where, program)
+    _outside_events(where, app)
+    _running(where, program, outside=[e.event for e in app.events])
     _solver(where, program, [j for js in joints.values() for j in js])
     _drivers(where, app, joints)
     _sensors(where, app)
@@ -249,16 +252,17 @@ def _configurations(where: _Where, program: Program) -> None:
                               f"unknown configuration '{name}'; known: {sorted(program.configurations)}")
 
 
-def raised_events(program: Program, robots: Iterable[str]) -> set[str]:
-    """Every event raised inside the Constraint-based program that its Coordinator can hear."""
-    events = {m.event for m in program.monitors} | set(SOLVER_EVENTS)
+def raised_events(program: Program, robots: Iterable[str], outside: Iterable[str] = ()) -> set[str]:
+    """Every event raised inside the Constraint-based program that its Coordinator can hear
+    (``outside``: those the application's outside events raise in it)."""
+    events = {m.event for m in program.monitors} | set(SOLVER_EVENTS) | set(outside)
     events |= {f'e_{r}_joints_missing' for r in robots}
     if program.running is not None:
         events |= {e for s in program.running.states.values() for e in s.raise_}
     return events
 
 
-def _running(where: _Where, program: Program) -> None:
+def _running(where: _Where, program: Program, *, outside: Iterable[str] = ()) -> None:
     fsm = program.running
     if fsm is None:
         return
@@ -274,7 +278,7 @@ def _running(where: _Where, program: Program) -> None:
                 if item not in names:
                     raise where.error(('program', 'running', 'states', name, field, k),
                                       f"unknown {what[field]} '{item}'; known: {sorted(names)}")
-    events = raised_events(program, [r.name for r in program.robots])
+    events = raised_events(program, [r.name for r in program.robots], outside)
     for i, transition in enumerate(fsm.transitions):
         loc = ('program', 'running', 'transitions', i)
         for end, key in ((transition.source, 'from'), (transition.target, 'to')):
@@ -326,6 +330,13 @@ def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> N
     for robot in joints:
         if robot not in driven:
             raise where.error(('drivers',), f"robot '{robot}' has no driver")
+
+
+def _outside_events(where: _Where, app: Application) -> None:
+    for i, outside in enumerate(app.events):
+        problem = check_outside_event(outside)
+        if problem is not None:
+            raise where.error(('events', i, problem[0]), problem[1])
 
 
 def _sensors(where: _Where, app: Application) -> None:

@@ -2,7 +2,8 @@
 small YAML DSL, validated with pydantic (unknown fields refused).
 
 * **Application** — a Constraint-based program and the hardware it runs on: one Driver per robot,
-  Sensors for moving objects, the rate, the machines its composites run on (``hosts``).
+  Sensors for moving objects, the rate, the machines its composites run on (``hosts``), and the
+  topics and services of other ROS nodes that raise events of the program (``events``).
 * **Constraint-based program** — robots (URDF, base type, placement, object frames on links),
   objects (placement, object frames), Tasks, the Solver, named configurations (paper §5),
   Monitors (condition → event, paper §4.1) and the Running sub-FSM (paper §6.2).
@@ -19,6 +20,7 @@ import math
 import re
 from typing import Any, Literal
 
+from itasc_core.composition.model import OutsideEventModel
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 __all__ = ['Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task', 'Controller',
@@ -425,6 +427,9 @@ class Application(_Model):
     #: Composites on other machines (README "Several machines"): the program's or a Task's name ->
     #: the name of the host whose agent runs it.
     hosts: dict[str, str] = Field(default_factory=dict)
+    #: Outside events: messages and service calls of other ROS nodes (a gripper, a PLC bridge) that
+    #: raise events of the program, for its Running sub-FSM to wait for.
+    events: list[OutsideEventModel] = Field(default_factory=list)
 
     @model_validator(mode='after')
     def _placeable(self) -> 'Application':

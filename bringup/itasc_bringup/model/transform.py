@@ -162,6 +162,7 @@ def _program(app: Application) -> CompositeModel:
         monitors=[_monitor(m, enabled=_initially_enabled(program, m.name, m.enabled)) for m in program.monitors],
         running=_running(program),
         safety=EMERGENCY,
+        events=app.events,
     )
 
 

@@ -15,6 +15,8 @@ JointTrajectoryController).
   - ``trajectory``: ``trajectory_msgs/JointTrajectory``, one point ``horizon`` seconds ahead.
 
 On disengage and in Safety it commands zero velocity (velocity) or holds the measured position.
+In Safety it keeps reporting what the driver measures (as a simulated robot does), so that the
+watchdog Monitors can tell whether a silent driver came back before a recovery.
 """
 
 from __future__ import annotations
@@ -86,17 +88,20 @@ class Ros2ControlAdapter(FunctionalEntity):
         self._last_t = t
         if self.measured is None:
             return  # nothing to report, nothing to command before the driver reported
-        if self._fresh:  # only what the driver reported: a silent driver shows as stale data
-            self._fresh = False
-            state = JointState(name=self.joints, position=self.measured.tolist())
-            state.header.stamp = self.get_clock().now().to_msg()
-            self.outputs['joint_state'].write(state)
+        self._report()
         command = self.inputs['command'].latest
         velocity = np.zeros(len(self.joints))
         if command is not None:
             by_name = dict(zip(command.name, command.velocity))
             velocity = np.array([by_name.get(j, 0.0) for j in self.joints], dtype=float)
         self._send(np.where(np.isfinite(velocity), velocity, 0.0), dt)
+
+    def _report(self) -> None:
+        if self._fresh:  # only what the driver reported: a silent driver shows as stale data
+            self._fresh = False
+            state = JointState(name=self.joints, position=self.measured.tolist())
+            state.header.stamp = self.get_clock().now().to_msg()
+            self.outputs['joint_state'].write(state)
 
     def _send(self, velocity: np.ndarray, dt: float) -> None:
         if self.interface == 'velocity':
@@ -118,3 +123,9 @@ class Ros2ControlAdapter(FunctionalEntity):
         if self.measured is not None:
             self._target = None
             self._send(np.zeros(len(self.joints)), 0.0)
+
+    def safe(self) -> None:
+        """Safety, at every tick: report what the driver measures, command it to hold."""
+        if self.measured is not None:
+            self._report()
+        self.disengage()

@@ -158,6 +158,8 @@ class InputPort:
         #: For ``multiple`` inputs: the newest sample of every source topic.
         self.samples: dict[str, Any] = {}
         self.received = 0
+        #: When the newest sample arrived (``time.monotonic()``), None before the first.
+        self.received_at: float | None = None
 
     @property
     def connected(self) -> bool:
@@ -179,6 +181,7 @@ class InputPort:
     def deliver(self, msg: Any, topic: str) -> None:
         self.latest = msg
         self.received += 1
+        self.received_at = time.monotonic()
         if self.spec.multiple:
             self.samples[topic] = msg
         if self._on_sample is not None:

@@ -5,6 +5,8 @@ it and the value.
 Every leaf entity's kind is registered and takes the parameters it is given, of the types of its
 defaults; every exported port, connection end and watched port exists (port metadata from the
 model alone, :mod:`.resolve`), and every connection joins ports that agree on their metadata.
+Every outside event names an installed message or service type, and a field it has
+(:func:`check_outside_event`, also used by the iTaSC application model's checks).
 """
 
 from __future__ import annotations
@@ -12,14 +14,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ..communication.interfaces import InterfaceError, check_value, field_type, interface
 from ..communication.ports import SemanticMismatch, check_connection
 from ..computation.functional_entity import coerce
 from .loader import ModelError, format_loc, source_of
-from .model import CompositeModel, EntityModel
+from .model import CompositeModel, EntityModel, OutsideEventModel
 from .registry import UnknownKind, resolve_kind
 from .resolve import PortNotFound, port_of
 
-__all__ = ['check_composite']
+__all__ = ['check_composite', 'check_outside_event']
 
 Loc = tuple[Any, ...]
 _SCALARS = (bool, int, float, str)
@@ -63,6 +66,30 @@ def _composite(model: CompositeModel, sources: dict[Loc, Path], loc: Loc, *, nam
             raise _error(sources, loc + ('connections', k), str(err)) from None
     for k, monitor in enumerate(model.monitors):
         port(monitor.watch, loc + ('monitors', k, 'watch'))
+    for k, outside in enumerate(model.events):
+        problem = check_outside_event(outside)
+        if problem is not None:
+            raise _error(sources, loc + ('events', k, problem[0]), problem[1])
+
+
+def check_outside_event(spec: OutsideEventModel) -> tuple[str, str] | None:
+    """Whether an outside event names an installed interface type and a field it has, with a
+    value that field can take: None, or the key at fault (``type``, ``field``, ``value``) and why."""
+    try:
+        cls = interface(spec.type, spec.kind)
+    except InterfaceError as err:
+        return 'type', str(err)
+    if spec.field is None:
+        return None
+    try:
+        ros_type = field_type(cls.Request if spec.kind == 'srv' else cls, spec.field)
+    except InterfaceError as err:
+        return 'field', f"'{spec.field}': {err}"
+    try:
+        check_value(ros_type, spec.value)
+    except InterfaceError as err:
+        return 'value', f"field '{spec.field}': {err}"
+    return None
 
 
 def _entity(entity: EntityModel, sources: dict[Loc, Path], loc: Loc) -> None:

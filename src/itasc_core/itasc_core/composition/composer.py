@@ -5,9 +5,10 @@ Coordinator–Composer pattern: the Composer holds composition steps with IDs an
 the Coordinator raises the matching event, answering with a status event:
 
 ====================================  =============================================================
-``e_<c>_deploy``                      create Scheduler, Functional Entities, Monitors, (root) Timer,
-                                      and every child composite's Coordinator, Configurator and
-                                      Composer → ``e_<c>_deployed`` / ``e_<c>_deploy_failed``
+``e_<c>_deploy``                      create Scheduler, Functional Entities, Monitors, the entity
+                                      of the outside events, (root) Timer, and every child
+                                      composite's Coordinator, Configurator and Composer
+                                      → ``e_<c>_deployed`` / ``e_<c>_deploy_failed``
 ``e_<c>_connect``                     check every connection's port metadata, connect the data
                                       flow → ``e_<c>_connected`` / ``e_<c>_connect_failed``
 ``e_<c>_cleanup_computation``         destroy Functional Entities incl. child composites
@@ -15,6 +16,10 @@ the Coordinator raises the matching event, answering with a status event:
 ``e_<c>_cleanup``                     destroy the other entities → ``e_<c>_cleaned``
 ``e_<c>_compose_<step>``              a composition step of the model, e.g. add a Task while the
                                       composite runs → ``e_<c>_composed`` (detail: new children)
+``e_<c>_check_faults``                before a recovery from Safety: are the causes still there?
+                                      Asks each entity named in the detail ``fault_persists()``,
+                                      and counts a dead child process as one
+                                      → ``e_<c>_faults_checked`` (:mod:`..coordination.recovery`)
 ====================================  =============================================================
 
 A refused connection raises ``e_<c>_connection_refused`` naming both ports.
@@ -30,9 +35,11 @@ from ..communication.events import EventRaiser, events_topic
 from ..communication.ports import SemanticMismatch, check_connection
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
+from ..computation.outside_events import OutsideEvents
 from ..configuration.configurator import Configurator
 from ..coordination.coordinator import Coordinator
 from ..coordination.lifecycle import RunningFsmSpec, RunningState, RunningTransition
+from ..coordination.recovery import check_answer, parse_request
 from ..coordination.scheduler import Scheduler
 from ..coordination.timer import Timer
 from ..entity import CompositeContext, Entity
@@ -92,6 +99,7 @@ class Composer(Entity):
         self.timer: Timer | None = None
         self.entities: dict[str, FunctionalEntity] = {}
         self.monitors: dict[str, Monitor] = {}
+        self.outside_events: OutsideEvents | None = None
         self.children: dict[str, Composer | None] = {}  # None: hosted in another process
         self._pending: list[ConnectionModel] = []
         self._child_raisers: dict[str, EventRaiser] = {}
@@ -119,7 +127,8 @@ class Composer(Entity):
     def _accepts(self, name: str) -> bool:
         return name in self._steps or (bool(self._pending) and name.endswith('_configured')) \
             or name.startswith(f'e_{self.composite.name}_bind') \
-            or name in self._child_stopped or name in self._child_stop
+            or name in self._child_stopped or name in self._child_stop \
+            or name == f'e_{self.composite.name}_check_faults'
 
     def _on_event(self, msg) -> None:
         if msg.name in self._child_stopped:
@@ -132,6 +141,11 @@ class Composer(Entity):
                 dead = child in self._dead
             if dead:
                 self.raise_event(f'e_{child}_stopped', detail='its process had died')
+            return
+        if msg.name == f'e_{self.composite.name}_check_faults':
+            number, sources = parse_request(msg.detail)
+            self.raise_event(f'e_{self.composite.name}_faults_checked',
+                             detail=check_answer(number, '; '.join(self.faults_still_there(sources))))
             return
         if msg.name == f'e_{self.composite.name}_bind':
             port, _, topic = msg.detail.partition('|')
@@ -146,6 +160,22 @@ class Composer(Entity):
     def entity(self, name: str):
         """A deployed entity of this composite by name (for the Configurator)."""
         return self.entities.get(name) or self.monitors.get(name)
+
+    def faults_still_there(self, sources: list[str]) -> list[str]:
+        """Why the faults the entities ``sources`` (node names) raised are still there: each is asked
+        its ``fault_persists()`` (an entity that cannot tell says they are gone); and every child
+        process that died (it cannot be reconfigured: a new start is needed)."""
+        with self._lock:
+            dead = sorted(self._dead)
+        reasons = [f'the process of composite {name} is dead: only a new start brings it back' for name in dead]
+        nodes = [*self.entities.values(), *self.monitors.values(), self.scheduler, self.configurator, self]
+        by_name = {node.get_fully_qualified_name(): node for node in nodes if node is not None}
+        for source in sources:
+            check = getattr(by_name.get(source), 'fault_persists', None)
+            reason = check() if check is not None else None
+            if reason:
+                reasons.append(f'{source.rsplit("/", 1)[-1]}: {reason}')
+        return reasons
 
     def tick(self, t: float) -> None:
         """Trigger this composite's Scheduler (called by the parent's Scheduler, same process)."""
@@ -164,6 +194,9 @@ class Composer(Entity):
                     self._deploy_entity(entity)
                 for monitor in self.model.monitors:
                     self._deploy_monitor(monitor)
+                if self.model.events:
+                    self.outside_events = OutsideEvents(composite=self.composite, events=self.model.events)
+                    self.runtime.add(self.outside_events)
                 if self.composite.parent_namespace is None and self.model.rate:
                     self.timer = Timer(composite=self.composite, scheduler=self.scheduler, rate=self.model.rate)
                     self.runtime.add(self.timer)
@@ -373,8 +406,8 @@ class Composer(Entity):
 
     def cleanup(self) -> None:
         """Destroy the other entities of the composite (Cleanup)."""
-        retired = [*self.monitors.values(), self.scheduler, self.timer]
+        retired = [*self.monitors.values(), self.scheduler, self.timer, self.outside_events]
         self.monitors.clear()
-        self.scheduler = self.timer = None
+        self.scheduler = self.timer = self.outside_events = None
         self.runtime.retire(node for node in retired if node is not None)
         self.raise_event(f'e_{self.composite.name}_cleaned')

@@ -7,7 +7,8 @@ model of the pattern itself can be written in it directly (``config/apps/pattern
 A composite lists its Functional Entities (any of which may be a composite, to any depth), the
 connections between their ports, the ports it exports to its parent, its named configurations
 (Configurator), its monitors, its composition steps (Composer), its Running sub-FSM and what it
-raises to its parent when it enters Safety (Coordinator), and the host it runs on (§4.4).
+raises to its parent when it enters Safety (Coordinator), the topics and services of other ROS
+nodes that raise its events (outside events), and the host it runs on (§4.4).
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ __all__ = [
     'RunningTransitionModel',
     'CompositionStepModel',
     'SafetyModel',
+    'OutsideEventModel',
+    'OUTSIDE_EVENTS',
     'walk',
 ]
 
@@ -108,6 +111,47 @@ class RunningModel(_Strict):
         return self
 
 
+#: The name of the entity that raises a composite's outside events (reserved when it has some).
+OUTSIDE_EVENTS = 'outside_events'
+#: A ROS topic or service name: absolute, relative to the composite's namespace, or private (``~/``).
+_ROS_NAME = r'^(~/|/)?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$'
+
+
+class OutsideEventModel(_Strict):
+    """An event of the composite raised by another ROS node (a gripper, a PLC bridge): a message
+    of ``type`` on ``topic`` (every message; with ``field`` and ``value``, each time the field turns
+    equal to the value, e.g. a ``std_msgs/msg/Bool`` turning true), or a call of the service
+    ``service`` of ``type`` the composite offers (e.g. ``std_srvs/srv/Trigger``; with ``field`` and
+    ``value``, a call whose request field equals the value). Types and fields are checked against
+    the installed interfaces before anything starts."""
+
+    event: str = Field(pattern=r'^e_[A-Za-z0-9_]+$', description='The event raised in the composite.')
+    topic: str | None = Field(default=None, pattern=_ROS_NAME, description=(
+        'A topic another node publishes (absolute, or relative to the composite\'s namespace).'))
+    service: str | None = Field(default=None, pattern=_ROS_NAME, description=(
+        'A service the composite offers other nodes (a relative name lies in its namespace).'))
+    type: str = Field(min_length=1, description=(
+        'The message (topic) or service type: ``pkg/msg/Name``, ``pkg/srv/Name`` or ``pkg/Name``.'))
+    field: str | None = Field(default=None, pattern=r'^[A-Za-z][A-Za-z0-9_]*(\.[A-Za-z][A-Za-z0-9_]*)*$',
+                              description=('A field of the message (of the request), ``a.b`` for a '
+                                           'nested one: the event is raised when it turns equal to value.'))
+    value: bool | int | float | str | None = Field(default=None, description=(
+        'The value of field that raises the event (a boolean, number or string).'))
+
+    @model_validator(mode='after')
+    def _complete(self) -> 'OutsideEventModel':
+        if (self.topic is None) == (self.service is None):
+            raise ValueError('give a topic or a service (one of them)')
+        if (self.field is None) != (self.value is None):
+            raise ValueError('field and value go together: the event is raised when the field equals the value')
+        return self
+
+    @property
+    def kind(self) -> str:
+        """``msg`` for a topic, ``srv`` for a service."""
+        return 'msg' if self.topic is not None else 'srv'
+
+
 class SafetyModel(_Strict):
     """What a composite raises to its parent on entering Safety (the application decides)."""
 
@@ -137,6 +181,8 @@ class CompositeModel(_Strict):
     running: RunningModel | None = None
     safety: SafetyModel = Field(default_factory=SafetyModel)
     composition_steps: dict[str, CompositionStepModel] = Field(default_factory=dict)
+    #: Topics and services of other ROS nodes that raise events of this composite.
+    events: list[OutsideEventModel] = Field(default_factory=list)
     #: Root only: the rate of the Timer that triggers the root Scheduler.
     rate: float | None = Field(default=None, gt=0)
     #: The machine this composite runs on: the host agent of that name starts it (see
@@ -147,6 +193,9 @@ class CompositeModel(_Strict):
     @model_validator(mode='after')
     def _consistent(self) -> 'CompositeModel':
         names = [e.name for e in self.entities] + [m.name for m in self.monitors]
+        if self.events and OUTSIDE_EVENTS in names:
+            raise ValueError(f"'{OUTSIDE_EVENTS}' is the name of the entity that raises the outside events: "
+                             'choose another name')
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ValueError(f'duplicate entity names {duplicates}')

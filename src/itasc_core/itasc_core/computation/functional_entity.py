@@ -120,6 +120,13 @@ class FunctionalEntity(Entity):
         """Bring outputs to a safe value (Safety)."""
         self.disengage()
 
+    def fault_persists(self) -> str | None:
+        """Asked before a recovery from Safety when this entity raised one of its faults: why its
+        condition still holds, on the data that came in since, or None if it no longer does (the
+        default: an entity that cannot tell lets the restart test it, see
+        :mod:`..coordination.recovery`)."""
+        return None
+
     def destroy_node(self) -> None:
         for port in self.inputs.values():
             port.disconnect()

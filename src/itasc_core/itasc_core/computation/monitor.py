@@ -122,6 +122,7 @@ class Monitor(FunctionalEntity):
 
     def start(self) -> None:
         self._since = self._last_update = None
+        self._holding = False  # also after a recovery: a condition holding from the start is news
 
     @property
     def watch(self) -> InputPort:
@@ -150,3 +151,22 @@ class Monitor(FunctionalEntity):
             self.raised += 1
             self.raise_event(self.event, detail=f'{self.entity_name}: {self.condition.kind} on {self.field or "value"}')
         self._holding = holds
+
+    def fault_persists(self) -> str | None:
+        """Whether the condition still holds, on the data that arrived until now (the Scheduler runs
+        no Monitor in Safety, but the data keeps flowing: a Driver keeps reporting what it measures).
+        Asked before a recovery from Safety (:mod:`..coordination.recovery`); the reason, or None."""
+        port = self.watch
+        if self.condition.kind == 'stale':
+            if port.received_at is None:
+                return f'nothing ever came on {", ".join(port.sources) or "its input"}'
+            age = time.monotonic() - port.received_at
+            if age > self.condition.timeout:
+                return f'stale: nothing came on {", ".join(port.sources)} for {age:.1f} s'
+            return None
+        if port.latest is None:
+            return None
+        values = read_field(port.latest, self.field)
+        if self.condition.holds(values, age=0.0):
+            return f'{self.condition.kind} on {self.field or "value"}: {values}'
+        return None

@@ -4,7 +4,8 @@ A pure event processor: it feeds the events of its composite's event topic (and 
 commands) into the life-cycle FSM of :mod:`.lifecycle` and publishes the events that FSM raises.
 Common events are buffered and processed at the Coordinator's next update (a periodic timer);
 priority events (``e_emergency``) are processed on arrival (§6.2). It publishes its fully
-qualified state on ``<composite namespace>/state`` on every change.
+qualified state on ``<composite namespace>/state`` on every change, and offers the operator
+services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..communication.events import EventRaiser
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
 from .lifecycle import LifecycleFsm, RunningFsmSpec
+from .operator import Operator
 
 __all__ = ['Coordinator', 'STARTUP_TIMEOUT']
 
@@ -57,6 +59,9 @@ class Coordinator(Entity):
             running=running,
             safety_to_parent=safety_to_parent,
         )
+        self._safety_to_parent = tuple(safety_to_parent)
+        self.operator = Operator(self, composite=composite, fsm=self.fsm, raise_own=self._raiser.raise_event,
+                                 to_parent=None if self.is_root else self._to_parent)
         self._events = self.listen(topics=[composite.events_topic], on_priority=self._process,
                                      accept=self._accepts, on_gap=self._gap)
         self._parent_events = None if self.is_root else self.listen(
@@ -72,7 +77,8 @@ class Coordinator(Entity):
         return self.fsm.state
 
     def _accepts(self, name: str) -> bool:
-        return self.fsm.is_relevant(name) or name == f'e_{self.composite.name}_composed'
+        return self.fsm.is_relevant(name) or name == f'e_{self.composite.name}_composed' \
+            or self.operator.accepts(name)
 
     def _accepts_parent(self, name: str) -> bool:
         return is_addressed_to(self.composite.name, name)
@@ -83,6 +89,8 @@ class Coordinator(Entity):
         sub-FSM); any other ``e_<composite>_<x>`` is passed into this composite as ``e_<x>``."""
         if msg.source == self.get_fully_qualified_name():
             return  # our own notifications to the parent
+        if self.operator.consume_parent(msg):
+            return
         if self.fsm.is_relevant(msg.name):
             self._process(msg)
         elif msg.name not in self._notifications:
@@ -103,13 +111,17 @@ class Coordinator(Entity):
             self._raiser.raise_event(f'e_{self.composite.name}_timeout', priority=True,
                                      detail=f'{self.state} waited {self._startup_timeout:g} s for {waiting}')
             self.fsm.process(f'e_{self.composite.name}_timeout')
+        self.operator.update()
 
     def _process(self, msg) -> None:
         if msg.name == f'e_{self.composite.name}_composed':
             for child in filter(None, msg.detail.split(',')):
                 self.fsm.adopt(child)
             return
+        if self.operator.consume(msg):
+            return
         self.fsm.process(msg.name)
+        self.operator.processed(msg)
 
     def _raise(self, name: str, to_parent: bool) -> None:
         raiser = self._to_parent if to_parent else self._raiser
@@ -126,3 +138,4 @@ class Coordinator(Entity):
         msg.event = event
         self._state_publisher.publish(msg)
         self.get_logger().debug(f'{state} <- {event}')
+        self.operator.on_state(state, previous, self._safety_to_parent)

@@ -19,7 +19,10 @@ running), or on ``e_<c>_timeout``: the Coordinator raises it when a state on the
 (DeployEntities, ConfigureEntities, ConnectEntities, Starting, PreRunning) waited longer than its
 timeout for events of its own entities or children that did not come (a
 child that never answers). Leaving it takes a reconfiguration (``e_<c>_configure``) or an
-orderly stop.
+orderly stop. A reconfiguration commanded by the parent (which recovers, or reconfigures its
+children) is driven on by the parent as at the first start; one this composite starts itself
+(:meth:`LifecycleFsm.recover`, the operator's ``~/recover`` of a composite whose parent is not in
+Safety) goes on through Start and Run to Running on its own, as the root does.
 
 Every transition waits for a *set* of events (∀ in Fig. 5). Event memory (the rFSM extension)
 records the events that arrived since the current state was entered and is cleared on every state
@@ -158,6 +161,8 @@ class LifecycleFsm:
         self.state = 'Init'
         self._transitions: list[_Transition] = []
         self._adopted: dict[str, str] = {}
+        #: Recovering on its own (not commanded by the parent): moves from -ed to -ing by itself.
+        self._self_driven = False
         self._add_transitions()
         self._stopping = next(t for t in self._transitions if t.source == 'Active.Stop.Stopping')
         self._relevant = {SAFETY_EVENT}.union(*(t.requires for t in self._transitions))
@@ -184,6 +189,30 @@ class LifecycleFsm:
     def is_relevant(self, event: str) -> bool:
         """Whether this FSM reacts to ``event`` (anything else is ignored without cost)."""
         return event in self._relevant
+
+    def relevant_events(self) -> list[str]:
+        """Every event some state of this FSM reacts to."""
+        return sorted(self._relevant)
+
+    def running_events(self) -> set[str]:
+        """The events the application's Running sub-FSM moves on (its transitions' events)."""
+        return {e for t in (self._running.transitions if self._running is not None else ()) for e in t.events}
+
+    def reacts_now(self, event: str) -> bool:
+        """Whether a transition out of the current state (or one of its parents) needs ``event``."""
+        return any(event in t.requires and (self.state == t.source or self.state.startswith(t.source + '.'))
+                   for t in self._transitions)
+
+    # -- recovery from Safety -----------------------------------------------------------------------
+
+    def recover(self) -> bool:
+        """Leave Safety by reconfiguration (paper §6.1), on this composite's own initiative: Safety
+        -> Active.Configure, and on through Start and Run to Running without waiting for commands
+        of the parent, which is not in Safety and already runs. Returns whether it left Safety."""
+        if self.state != 'Safety':
+            return False
+        self._self_driven = not self.is_root  # the root drives itself anyway
+        return self.process(self.ev('configure'))
 
     # -- run-time re-composition ----------------------------------------------------------------------
 
@@ -335,6 +364,8 @@ class LifecycleFsm:
         """Raise the events of ``state`` (Fig. 5): -ing states act on this composite, then on its
         children; -ed states notify the parent."""
         leaf = state.rsplit('.', 1)[-1]
+        if self._self_driven:
+            self._drive_self(state, leaf)
         if state.startswith('Active.Run.Running.'):  # a state of the application's sub-FSM
             for s in self._running.states if self._running is not None else ():
                 if s.name == leaf:
@@ -354,6 +385,16 @@ class LifecycleFsm:
         if state == 'Safety':
             for name in self._safety_to_parent:
                 self._raise(name, True)
+
+    def _drive_self(self, state: str, leaf: str) -> None:
+        """A composite recovering on its own commands itself what its parent would (start, run),
+        once it notified the parent of the -ed state; it stops doing so in Running, Stop or Safety."""
+        if leaf == 'NotifyConfigured':
+            self._memory.add(self.ev('start'))
+        elif leaf == 'Started':
+            self._memory.add(self.ev('run'))
+        elif leaf == 'Running' or state == 'Safety' or state.startswith('Active.Stop'):
+            self._self_driven = False
 
     def waiting_for(self) -> list[str]:
         """The events the current state still waits for (those of its first transition out that

@@ -35,6 +35,10 @@ class Ticks:
     def restart(self) -> None:
         self._resume = True
 
+    def reset(self) -> None:
+        """As new: the next tick is a first one (a start, or a restart after Safety)."""
+        self.last, self._resume = None, False
+
     def step(self, t: float) -> tuple[float, bool]:
         """``(dt, resumed)`` for the tick at time ``t``; dt is the nominal period after a restart."""
         last, self.last = self.last, t

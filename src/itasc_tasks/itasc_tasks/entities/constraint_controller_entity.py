@@ -79,6 +79,11 @@ class ConstraintControllerEntity(FunctionalEntity):
         self._ticks = getattr(self, '_ticks', None) or Ticks(params['tick_period'])
         self._ticks.period = params['tick_period']
 
+    def start(self) -> None:
+        """Starting (also again, after a recovery from Safety): the next tick starts afresh (the
+        integral of the error reset)."""
+        self._ticks.reset()
+
     def activate(self) -> None:
         self._ticks.restart()
 

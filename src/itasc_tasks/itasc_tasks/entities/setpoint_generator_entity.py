@@ -123,6 +123,11 @@ class SetpointGeneratorEntity(FunctionalEntity):
         if isinstance(self.generator, TopicSetpoint):
             self.generator.push(np.asarray(msg.data, dtype=float))
 
+    def start(self) -> None:
+        """Starting (also again, after a recovery from Safety): the next tick starts the setpoint
+        from where the Task is then."""
+        self._ticks.reset()
+
     def activate(self) -> None:
         self._ticks.restart()
 

@@ -68,3 +68,10 @@ class RobotEntity(FunctionalEntity):
         out = JointState(name=self.joint_names, position=positions)
         out.header.stamp = stamp(t)
         self.outputs['joint_state'].write(out)
+
+    def fault_persists(self) -> str | None:
+        """Before a recovery from Safety: are the latest measured joint positions still not finite?"""
+        msg = self.inputs['measured'].latest
+        by_name = dict(zip(msg.name, msg.position)) if msg is not None else {}
+        bad = [n for n in self.joint_names if n in by_name and not math.isfinite(by_name[n])]
+        return f'{self.robot.name}: non-finite joint positions {bad}' if bad else None

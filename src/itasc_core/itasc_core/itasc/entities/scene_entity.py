@@ -135,6 +135,15 @@ class SceneEntity(FunctionalEntity):
                                       self.scene.relative_jacobian(o1, o2)])
             self.outputs[f'relation_{name}'].write(table_msg(FEATURES, self._columns, values, rotation=3))
 
+    def fault_persists(self) -> str | None:
+        """Before a recovery from Safety: is a sensed pose still not finite (or its quaternion zero)?"""
+        broken = [name for name in self.sensed if _broken(self.inputs[f'pose_{name}'].latest)]
+        return f'measured pose of {", ".join(broken)} not finite or its quaternion zero' if broken else None
+
+
+def _broken(msg) -> bool:
+    return msg is not None and _se3(msg.pose) is None
+
 
 def _se3(pose) -> pin.SE3 | None:
     """A ``geometry_msgs/Pose`` as SE3, its quaternion normalised (scaled first, so that neither a
