@@ -46,6 +46,7 @@ setup(
             'itasc-graph = itasc_bringup.graph:main',
             'itasc-replay = itasc_bringup.replay:main',
             'itasc-recover = itasc_bringup.recording.recover:main',
+            'itasc-model = itasc_bringup.model.cli:main',
             'host_agent = itasc_core.composition.host_agent:main',
         ],
     },

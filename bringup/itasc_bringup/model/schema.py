@@ -36,7 +36,7 @@ Vec3 = tuple[float, float, float]
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+    model_config = ConfigDict(extra='forbid', populate_by_name=True, use_attribute_docstrings=True)
 
 
 def _as_list(value: Any) -> Any:
@@ -48,7 +48,9 @@ class Placement(_Model):
     """A pose: translation [m] and roll-pitch-yaw [rad] (URDF convention)."""
 
     xyz: Vec3 = (0.0, 0.0, 0.0)
+    """Translation [m]."""
     rpy: Vec3 = (0.0, 0.0, 0.0)
+    """Roll, pitch, yaw [rad] (URDF convention)."""
 
 
 # -- Constraint-based program: robots and objects --------------------------------------------------
@@ -57,15 +59,20 @@ class RobotFrame(Placement):
     """An object frame on a robot link (e.g. the TCP), offset from the link."""
 
     name: str = Field(pattern=NAME)
+    """The frame's name: Tasks refer to it as ``<robot>/<name>``."""
     link: str = Field(min_length=1)
+    """The URDF link it is fixed to."""
 
 
 class JointLimits(_Model):
     """Limits of one joint that override the URDF's (position in rad or m, velocity per second)."""
 
     lower: float | None = None
+    """Lowest position [rad, or m for a prismatic joint]."""
     upper: float | None = None
+    """Highest position [rad, or m]."""
     velocity: float | None = Field(default=None, gt=0)
+    """Largest speed [rad/s, or m/s]."""
 
     @model_validator(mode='after')
     def _ordered(self) -> 'JointLimits':
@@ -80,21 +87,29 @@ class Robot(Placement):
     ``xyz``/``rpy`` in the world, its object frames, and joint limits overriding the URDF's."""
 
     name: str = Field(pattern=NAME)
+    """The robot's name: its frames are ``<name>/<frame>``, its topics under ``/<app>/<name>``."""
     urdf: str = Field(min_length=1)
+    """URDF file: a path relative to this model file, or a file name under ``config/robots``."""
     base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+    """``fixed``, or a mobile base: ``planar`` (x, y, yaw) or ``free_flyer`` (6 DOF)."""
     frames: list[RobotFrame] = Field(default_factory=list)
+    """Object frames on the robot's links (e.g. the tool centre point)."""
     limits: dict[str, JointLimits] = Field(default_factory=dict)
+    """Joint limits by joint name, overriding the URDF's."""
 
 
 class ObjectFrame(Placement):
     name: str = Field(pattern=NAME)
+    """The frame's name: Tasks refer to it as ``<object>/<name>``."""
 
 
 class ObjectMotion(_Model):
     """A moving object's trajectory: oscillating about its placement, per axis."""
 
     amplitude: tuple[float, float, float]
+    """Amplitude per axis x, y, z [m]."""
     period: float = Field(gt=0)
+    """Period of the oscillation [s]."""
 
 
 class Object(Placement):
@@ -103,9 +118,13 @@ class Object(Placement):
     Foxglove and itasc-scene; Tasks measure distances to its frames, not to its surface."""
 
     name: str = Field(pattern=NAME)
+    """The object's name; ``<name>`` alone is its own frame."""
     frames: list[ObjectFrame] = Field(default_factory=list)
+    """Frames fixed on the object."""
     motion: ObjectMotion | None = None
+    """A known motion (an oscillation about the placement); omitted: the object stays or its Sensor moves it."""
     size: float | None = Field(default=None, gt=0)
+    """Diameter [m] of the sphere that shows it; for display only."""
 
 
 # -- Task ----------------------------------------------------------------------------------------
@@ -114,10 +133,15 @@ class Controller(_Model):
     """A Constraint Controller: P or PID with feed-forward and saturation (paper §4.1 "CC")."""
 
     kind: Literal['p', 'pid'] = 'pid'
+    """``p``: proportional; ``pid``: proportional, integral, derivative."""
     kp: float = Field(default=1.0, ge=0)
+    """Proportional gain [1/s]: desired output velocity per unit of error."""
     ki: float = Field(default=0.0, ge=0)
+    """Integral gain [1/s²]."""
     kd: float = Field(default=0.0, ge=0)
+    """Derivative gain (dimensionless)."""
     max_output: float = Field(default=math.inf, gt=0)
+    """Saturation of the desired output velocity [unit of the output per s]; ``.inf``: none."""
 
 
 class Setpoint(_Model):
@@ -125,16 +149,27 @@ class Setpoint(_Model):
     ``pose`` of o2 in o1 instead. ``hold`` keeps the output where the Task found it."""
 
     kind: Literal['hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic']
+    """How the setpoint moves: ``hold`` where the Task found it, ``fixed``, ``minimum_jerk`` or ``trapezoidal`` towards ``value``/``pose``, ``periodic`` (a sine), or read from a ``topic``."""
     value: list[float] | None = None
+    """The target in output space, one number per output [m, rad or the output's unit]."""
     pose: Placement | None = None
+    """A Cartesian Task's target: the pose of o2 in o1."""
     duration: float = Field(default=0.0, ge=0)
+    """Time to reach the target [s] (``minimum_jerk``; 0: at once)."""
     max_velocity: list[float] | None = None
+    """Per output [unit/s] (``trapezoidal``)."""
     max_acceleration: list[float] | None = None
+    """Per output [unit/s²] (``trapezoidal``)."""
     amplitude: list[float] | None = None
+    """Per output (``periodic``)."""
     period: float | None = Field(default=None, gt=0)
+    """Period [s] (``periodic``)."""
     offset: list[float] | None = None
+    """Centre per output (``periodic``; omitted: where the Task starts)."""
     phase: list[float] | None = None
+    """Phase per output [rad] (``periodic``)."""
     topic: str | None = None
+    """Topic of ``std_msgs/Float64MultiArray`` setpoints, one value per output (``topic``)."""
 
     _list = field_validator('value', 'max_velocity', 'max_acceleration', 'amplitude', 'offset', 'phase',
                             mode='before')(_as_list)
@@ -164,19 +199,33 @@ class Task(_Model):
     ``priority`` (0 highest); an ``inequality`` keeps the outputs within ``d_min``/``d_max``."""
 
     name: str = Field(pattern=NAME)
+    """The Task's name: its composite, topics (``<program>/<name>/...``) and events (``e_<name>_...``)."""
     type: Literal['cartesian', 'distance', 'joint']
+    """The virtual kinematic chain: ``cartesian`` (pose of o2 in o1: x, y, z, rx, ry, rz), ``distance`` (between the origins of o1 and o2) or ``joint`` (joint positions)."""
     o1: str | None = None
+    """First object frame: ``<robot>/<frame>``, ``<object>/<frame>``, ``<object>`` or ``world``."""
     o2: str | None = None
+    """Second object frame, as o1."""
     joints: list[str] | None = None
+    """The joints of a ``joint`` Task."""
     outputs: list[str] | None = None
+    """The features constrained (omitted: all of the chain's)."""
     coordinates: Literal['xyz_log3', 'log6'] = 'xyz_log3'
+    """Orientation coordinates of a ``cartesian`` chain: ``xyz_log3`` (translation and rotation log) or ``log6`` (SE(3) log)."""
     controller: Controller = Field(default_factory=Controller)
+    """The Constraint Controller."""
     setpoint: Setpoint | None = None
+    """The Setpoint Generator (an equality Task)."""
     weights: list[float] = Field(default_factory=lambda: [1.0])
+    """Weight of each constrained output in its priority level (one value: all)."""
     priority: int = Field(default=0, ge=0)
+    """Priority level, 0 highest."""
     constraint: Literal['equality', 'inequality'] = 'equality'
+    """``equality``: follow the setpoint; ``inequality``: stay within ``d_min``/``d_max``."""
     d_min: list[float] | None = None
+    """Lower bound per output (one value: all) [m or rad]."""
     d_max: list[float] | None = None
+    """Upper bound per output [m or rad]."""
 
     _list = field_validator('weights', 'd_min', 'd_max', mode='before')(_as_list)
 
@@ -250,9 +299,13 @@ class Task(_Model):
 
 class ControllerSettings(_Model):
     kp: float | None = Field(default=None, ge=0)
+    """Proportional gain [1/s]."""
     ki: float | None = Field(default=None, ge=0)
+    """Integral gain [1/s²]."""
     kd: float | None = Field(default=None, ge=0)
+    """Derivative gain."""
     max_output: float | None = Field(default=None, gt=0)
+    """Saturation of the desired output velocity."""
 
 
 class Settings(_Model):
@@ -261,9 +314,13 @@ class Settings(_Model):
     a Monitor's ``threshold``."""
 
     controller: ControllerSettings | None = None
+    """New controller gains of the Task."""
     weights: list[float] | None = None
+    """New weights of the Task's outputs."""
     priority: int | None = Field(default=None, ge=0)
+    """New priority level of the Task."""
     threshold: float | None = None
+    """New threshold of the Monitor."""
 
     _list = field_validator('weights', mode='before')(_as_list)
 
@@ -291,13 +348,21 @@ class Monitor(_Model):
     ``Solver.<solve_time|min_singular_value|damping>``."""
 
     name: str = Field(pattern=NAME)
+    """The Monitor's name (a Running state lists the Monitors it runs)."""
     watch: str = Field(pattern=r'^[A-Za-z][A-Za-z0-9_]*\.[a-z_]+(\[[0-9]+\])?$')
+    """What it watches: ``<Task>.<output|setpoint|error|error_norm|progress>[index]`` or ``Solver.<solve_time|min_singular_value|damping>``."""
     condition: Literal['above', 'below', 'outside', 'stale', 'nonfinite']
+    """When it fires: the value goes ``above`` or ``below`` the threshold, leaves the ``band`` (``outside``), stops arriving for ``timeout`` (``stale``), or is not finite (``nonfinite``)."""
     threshold: float = 0.0
+    """The threshold of ``above``/``below``, in the watched value's unit."""
     band: tuple[float, float] | None = None
+    """The band [low, high] of ``outside``."""
     timeout: float = Field(default=0.5, gt=0)
+    """The silence that makes a value ``stale`` [s]."""
     event: str = Field(pattern=EVENT)
+    """The event it raises once the condition starts to hold."""
     enabled: bool = True
+    """Whether it runs from the start (a Running state may switch it)."""
 
     @model_validator(mode='after')
     def _band(self) -> 'Monitor':
@@ -312,9 +377,13 @@ class State(_Model):
     ``raise``."""
 
     tasks: list[str] | None = None
+    """The Tasks active in this state (omitted: the current ones stay)."""
     monitors: list[str] | None = None
+    """The Monitors active in this state (omitted: the current ones stay)."""
     configure: list[str] = Field(default_factory=list)
+    """Named configurations applied on entry."""
     raise_: list[str] = Field(default_factory=list, alias='raise')
+    """Events raised on entry."""
 
     @field_validator('raise_')
     @classmethod
@@ -327,8 +396,11 @@ class State(_Model):
 
 class Transition(_Model):
     source: str = Field(alias='from')
+    """The state it leaves."""
     target: str = Field(alias='to')
+    """The state it enters."""
     when: list[str] = Field(min_length=1)
+    """The events that trigger it (any of them)."""
 
     _list = field_validator('when', mode='before')(_as_list)
 
@@ -337,8 +409,11 @@ class Running(_Model):
     """The application-specific Running sub-FSM (paper §6.2)."""
 
     initial: str
+    """The state the sub-FSM starts in."""
     states: dict[str, State] = Field(min_length=1)
+    """The states, by name."""
     transitions: list[Transition] = Field(default_factory=list)
+    """The transitions between them."""
 
 
 class Solver(_Model):
@@ -347,11 +422,17 @@ class Solver(_Model):
     any qpsolvers solver; ``regularization`` the weight of the joint-velocity norm)."""
 
     kind: Literal['wdls', 'qp'] = 'wdls'
+    """``wdls``: weighted damped least squares, priorities by null-space projection; ``qp``: a cascade of quadratic programs, inequalities included."""
     backend: str = 'daqp'
+    """The QP solver (``qp``): any solver ``qpsolvers`` has installed."""
     joint_weights: dict[str, float] = Field(default_factory=dict)
+    """Weight of each joint's velocity by joint name (default 1): a heavier joint moves less."""
     damping: float = Field(default=0.1, ge=0)
+    """Largest damping near singularities (``wdls``) [rad/s]."""
     regularization: float = Field(default=1e-6, gt=0)
+    """Weight of the joint-velocity norm (``qp``)."""
     position_limit_gain: float = Field(default=0.5, gt=0, le=1)
+    """Fraction of the distance to a joint's position limit it may close in one second (0 < gain ≤ 1)."""
 
     @field_validator('joint_weights')
     @classmethod
@@ -365,14 +446,23 @@ class Program(_Model):
     """The Constraint-based program (paper §4.2)."""
 
     name: str = Field(default='itasc', pattern=NAME)
+    """The program composite's name."""
     robots: list[Robot] = Field(min_length=1)
+    """The robots."""
     objects: list[Object] = Field(default_factory=list)
+    """The objects and their frames."""
     tasks: list[Task] = Field(min_length=1)
+    """The Tasks."""
     solver: Solver = Field(default_factory=Solver)
+    """The Solver."""
     configurations: dict[str, dict[str, Settings]] = Field(default_factory=dict)
+    """Named configurations: name -> target (a Task or Monitor) -> settings (paper §5)."""
     configure: list[str] = Field(default_factory=list)
+    """Configurations applied when the program is configured."""
     monitors: list[Monitor] = Field(default_factory=list)
+    """The Monitors."""
     running: Running | None = None
+    """The Running sub-FSM (omitted: every Task runs from the start)."""
 
     @field_validator('configurations')
     @classmethod
@@ -391,13 +481,21 @@ class Driver(_Model):
     ``interface`` commands on ``command_topic``, default ``/<controller>/commands``)."""
 
     robot: str
+    """The robot it drives."""
     kind: Literal['simulated', 'ros2_control']
+    """``simulated`` (integrates the commanded velocities) or ``ros2_control`` (an existing driver)."""
     initial: dict[str, float] = Field(default_factory=dict)
+    """Initial joint positions of a simulated robot, by joint name [rad or m]."""
     joint_states: str = '/joint_states'
+    """Where a ``ros2_control`` driver publishes ``sensor_msgs/JointState``."""
     controller: str | None = Field(default=None, pattern=r'^[A-Za-z0-9_/]+$')
+    """The ros2_control controller that takes the commands."""
     interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
+    """What the controller takes: ``velocity`` or ``position`` (``std_msgs/Float64MultiArray``), or ``trajectory`` (``trajectory_msgs/JointTrajectory``)."""
     joints: list[str] | None = None
+    """The controller's joints, in the order its commands have them."""
     command_topic: str | None = None
+    """Where commands go (default ``/<controller>/commands``, or ``/<controller>/joint_trajectory``)."""
 
     @model_validator(mode='after')
     def _complete(self) -> 'Driver':
@@ -412,24 +510,32 @@ class Sensor(_Model):
     """A pose Sensor of a moving object: ``geometry_msgs/PoseStamped`` (world frame) on ``topic``."""
 
     object: str
+    """The object whose pose it measures."""
     kind: Literal['pose'] = 'pose'
+    """``pose``: ``geometry_msgs/PoseStamped`` in the world frame."""
     topic: str = Field(pattern=r'^/?[A-Za-z0-9_/]+$')
+    """The topic it reads."""
 
 
 class Application(_Model):
     """The Application (paper §4.2): a Constraint-based program with its Drivers and Sensors."""
 
     name: str = Field(pattern=NAME)
+    """The application's name: its root namespace ``/<name>``."""
     rate: float = Field(gt=0)
+    """The control rate [Hz]."""
     program: Program
+    """The Constraint-based program."""
     drivers: list[Driver] = Field(min_length=1)
+    """One Driver per robot."""
     sensors: list[Sensor] = Field(default_factory=list)
-    #: Composites on other machines (README "Several machines"): the program's or a Task's name ->
-    #: the name of the host whose agent runs it.
+    """Sensors of moving objects."""
     hosts: dict[str, str] = Field(default_factory=dict)
-    #: Outside events: messages and service calls of other ROS nodes (a gripper, a PLC bridge) that
-    #: raise events of the program, for its Running sub-FSM to wait for.
+    """Composites on other machines (README "Several machines"): the program's or a Task's name ->
+    the name of the host whose agent runs it."""
     events: list[OutsideEventModel] = Field(default_factory=list)
+    """Outside events: messages and service calls of other ROS nodes (a gripper, a PLC bridge) that
+    raise events of the program, for its Running sub-FSM to wait for."""
 
     @model_validator(mode='after')
     def _placeable(self) -> 'Application':
