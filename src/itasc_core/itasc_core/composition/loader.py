@@ -80,7 +80,8 @@ def load_yaml_tree(path: str | Path, *, roots: tuple[Path, ...] = ()) -> tuple[A
 
     Includes may reach files under the folder of ``path`` and under ``roots``."""
     root = Path(path)
-    tree = _Tree(roots=(root.resolve().parent, *(Path(r).resolve() for r in roots)), sources={(): root})
+    folders = dict.fromkeys((root.resolve().parent, *(Path(r).resolve() for r in roots)))  # each once, in order
+    tree = _Tree(roots=tuple(folders), sources={(): root})
     data = _resolve(_read(root, tree), base=root, loc=(), tree=tree, stack=(root.resolve(),))
     return data, tree.sources
 
