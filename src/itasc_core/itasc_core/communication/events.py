@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import threading
 from collections import deque
-from typing import Callable, Iterable
+from typing import Callable, ClassVar, Iterable
 
 from rclpy.node import Node
 
@@ -28,6 +28,10 @@ def events_topic(namespace: str) -> str:
 
 class EventRaiser:
     """Publishes events of one source on one composite's event topic."""
+
+    #: How many events this process raised (replay seam, :mod:`itasc_bringup.replay`: while it does
+    #: not change, nothing new can be waiting on the process's event topics).
+    raised: ClassVar[int] = 0
 
     def __init__(self, node: Node, *, topic: str, source: str | None = None) -> None:
         self._node = node
@@ -52,6 +56,7 @@ class EventRaiser:
             msg.seq = self._seq
             msg.stamp = self._node.get_clock().now().to_msg()
             self._publisher.publish(msg)
+            EventRaiser.raised += 1
         return msg
 
     def destroy(self) -> None:
@@ -71,6 +76,12 @@ class EventListener:
     each topic; otherwise it subscribes on ``node``. :meth:`destroy` ends the listening (an
     :class:`~itasc_core.entity.Entity` destroys its listeners with itself).
     """
+
+    #: Replay seam (:mod:`itasc_bringup.replay`): when set, every event a listener accepts is first
+    #: offered to ``gate(node, msg, topic, handle)`` (``node`` owns the listener); a gate that
+    #: returns True holds the event and calls ``handle()`` when it is due. None: events are
+    #: handled on arrival.
+    gate: ClassVar[Callable[[Node, Event, str, Callable[[], None]], bool] | None] = None
 
     def __init__(
         self,
@@ -125,6 +136,12 @@ class EventListener:
         self._last_seq[key] = msg.seq
         if self._accept is not None and not self._accept(msg.name):
             return
+        gate = EventListener.gate
+        if gate is not None and gate(self._node, msg, topic, lambda: self._handle(msg)):
+            return
+        self._handle(msg)
+
+    def _handle(self, msg: Event) -> None:
         if (msg.priority or self._immediate) and self._on_priority is not None:
             self._on_priority(msg)
         else:
