@@ -5,7 +5,8 @@ Entities, 5 composites) deployed in one process (``--deploy single``), ticked by
 1 kHz. Prints the bring-up time (rclpy.init to every Coordinator in Running), the achieved rate
 and the tick-to-completion latency (median, p90, p99, max) over the measurement window.
 With ``--app NAME`` the same figures for a shipped application (e.g. approach_object: the whole
-iTaSC program and its Driver every tick).
+iTaSC program and its Driver every tick). What TF, markers and diagnostics cost the tick:
+``bench_visualization.py``.
 
     python bench/bench_runtime.py [--rate 1000] [--seconds 10] [--repeat 3] [--app NAME]
 """
@@ -51,7 +52,7 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-def run_once(rate: float, seconds: float, app: str | None = None, visualization: bool = False) -> dict:
+def run_once(rate: float, seconds: float, app: str | None = None) -> dict:
     from itasc_core.communication.dds import configure_dds
     configure_dds()
     start = time.monotonic()
@@ -76,10 +77,6 @@ def run_once(rate: float, seconds: float, app: str | None = None, visualization:
     node = rclpy.create_node('bench', namespace=root.namespace)
     executor.add_node(node)
     composer = bring_up(model=spec, context=root, runtime=runtime)
-    end_visualization = lambda: None  # noqa: E731
-    if visualization:  # TF, markers (their own process) and /diagnostics, as the bootstrap starts them
-        from itasc_bringup.visualization import start_visualization
-        end_visualization = start_visualization(app, model=spec, node=node, composer=composer)
     raiser = EventRaiser(node, topic=root.events_topic)
     while raiser.publisher.get_subscription_count() < 3:
         executor.spin_once(timeout_sec=0.001)
@@ -110,7 +107,6 @@ def run_once(rate: float, seconds: float, app: str | None = None, visualization:
         'max_us': max(durations),
         'ticks': len(durations),
     }
-    end_visualization()
     raiser.raise_event(f'e_{spec.name}_stop')
     while not composer.coordinator.state.endswith('NotifyStopped'):
         executor.spin_once(timeout_sec=0.01)
@@ -125,11 +121,7 @@ def main() -> None:
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--repeat', type=int, default=3)
     parser.add_argument('--app', default=None, help='a shipped application instead of the synthetic hierarchy')
-    parser.add_argument('--visualization', action='store_true',
-                        help='with --app: each run twice, without and with TF, markers and /diagnostics')
     args = parser.parse_args()
-    if args.visualization:
-        return compare_visualization(args)
     cpu = next((line.split(':', 1)[1].strip() for line in open('/proc/cpuinfo') if line.startswith('model name')),
                platform.processor())
     print(f'machine: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}')
@@ -144,22 +136,6 @@ def main() -> None:
               f'{r["p99_us"]:>7.0f} {r["max_us"]:>7.0f} {r["ticks"]:>6}')
     for key in ('bring_up_s', 'rate_hz', 'median_us', 'p99_us'):
         print(f'median over runs: {key} = {statistics.median(r[key] for r in results):.3f}')
-
-
-def compare_visualization(args: argparse.Namespace) -> None:
-    """Tick median without and with visualization, runs interleaved (issue #13: within 5 %)."""
-    if args.app is None:
-        raise SystemExit('--visualization needs --app')
-    print(f'{args.app}, Timer at {args.rate:.0f} Hz, {args.seconds:.0f} s per run, without / with visualization')
-    medians = {False: [], True: []}
-    for i in range(args.repeat):
-        for with_viz in (False, True):
-            r = run_once(args.rate, args.seconds, args.app, visualization=with_viz)
-            medians[with_viz].append(r['median_us'])
-            print(f'{i:>3} {"with" if with_viz else "without":>7}: rate {r["rate_hz"]:.1f} Hz, '
-                  f'median {r["median_us"]:.0f} us, p99 {r["p99_us"]:.0f} us')
-    without, with_ = statistics.median(medians[False]), statistics.median(medians[True])
-    print(f'tick median without {without:.0f} us, with {with_:.0f} us: {100 * (with_ / without - 1):+.1f} %')
 
 
 if __name__ == '__main__':

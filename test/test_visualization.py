@@ -1,9 +1,12 @@
 """Seeing a run (issue #13), from its recording alone, read with rosbags (no ROS install needed):
 robot_description, TF that agrees with Pinocchio's forward kinematics, markers that agree with the
-Scene, /diagnostics, and types that are exactly Jazzy's."""
+Scene, /diagnostics, types that are exactly Jazzy's, and a Foxglove layout whose every topic and
+field is in the recording."""
 
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
 from collections import defaultdict
@@ -20,6 +23,7 @@ from itasc_bringup.model import load_application
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
 APP = 'approach_object'
 TOOL = 'panda/panda_hand_tcp'
+LAYOUT = Path(__file__).resolve().parents[1] / 'config' / 'foxglove' / f'{APP}.json'
 
 
 @pytest.fixture(scope='module')
@@ -253,3 +257,109 @@ def test_the_scene_pictures_show_the_tool_where_forward_kinematics_puts_it(recor
         images.append(image)
     for a, b in zip(images, images[1:]):
         assert np.abs(a - b).sum() > 1000  # each transition shows a different scene
+
+
+# -- the Foxglove layout (README "See it") --------------------------------------------------------
+# Foxglove has no layout schema of its own; what it reads is its PanelsState/LayoutData (Foxglove
+# Studio and Lichtblick, packages/studio-base: context/CurrentLayoutContext/actions.ts): panel
+# configs by panel id ``<type>!<suffix>``, a react-mosaic tree of those ids, global variables, user
+# scripts and the playback config. Importing a file only checks it is a JSON object; what a wrong
+# panel type or topic does is show an empty panel, which is what these tests rule out.
+
+#: Built-in panel types (packages/studio-base/src/panels/index.ts).
+FOXGLOVE_PANELS = {'3D', 'DiagnosticStatusPanel', 'DiagnosticSummary', 'Image', 'Indicator', 'Gauge', 'Teleop',
+                   'map', 'Parameters', 'Plot', 'Publish', 'CallService', 'RawMessages', 'RosOut',
+                   'StateTransitions', 'Table', 'TopicGraph', 'SourceInfo', 'GlobalVariableSliderPanel',
+                   'NodePlayground', 'Tab'}
+#: What the 3-D panel draws from a topic of its ``topics`` (its scene extensions, by schema).
+THREE_D_TYPES = {'visualization_msgs/msg/MarkerArray', 'visualization_msgs/msg/Marker', 'tf2_msgs/msg/TFMessage',
+                 'geometry_msgs/msg/PoseStamped', 'nav_msgs/msg/Path', 'sensor_msgs/msg/PointCloud2'}
+
+
+def _layout() -> dict:
+    return json.loads(LAYOUT.read_text(encoding='utf-8'))
+
+
+def _mosaic_leaves(node) -> list[str]:
+    """The panel ids of a react-mosaic tree, checking its inner nodes."""
+    if isinstance(node, str):
+        return [node]
+    assert set(node) <= {'direction', 'first', 'second', 'splitPercentage'}, node
+    assert node['direction'] in ('row', 'column'), node
+    assert 0 < node.get('splitPercentage', 50) < 100, node
+    return _mosaic_leaves(node['first']) + _mosaic_leaves(node['second'])
+
+
+def _message_paths(layout: dict) -> list[tuple[str, str]]:
+    """(panel id, message path) of every panel that plots or lists a message field."""
+    return [(panel, path['value']) for panel, config in layout['configById'].items()
+            for path in config.get('paths', [])]
+
+
+def _field(message, path: str):
+    """The value at a Foxglove message path's field part (``a.b[0]``) of a message."""
+    value = message
+    for name, index in re.findall(r'\.?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?', path):
+        value = getattr(value, name)
+        if index:
+            value = value[int(index)]
+    return value
+
+
+def test_the_foxglove_layout_is_a_foxglove_layout():
+    layout = _layout()
+    assert set(layout) <= {'configById', 'layout', 'globalVariables', 'userNodes', 'playbackConfig',
+                           'linkedGlobalVariables'}
+    assert {'configById', 'layout'} <= set(layout)
+    assert isinstance(layout.get('globalVariables', {}), dict) and isinstance(layout.get('userNodes', {}), dict)
+    assert layout.get('playbackConfig', {}).get('speed', 1) > 0
+    leaves = _mosaic_leaves(layout['layout'])
+    assert sorted(leaves) == sorted(layout['configById'])  # every panel shown once, none without config
+    for panel in leaves:
+        kind, _, suffix = panel.partition('!')
+        assert kind in FOXGLOVE_PANELS and suffix, panel
+    for panel, config in layout['configById'].items():
+        kind = panel.partition('!')[0]
+        if kind == '3D':  # the 3-D panel's RendererConfig
+            assert set(config) <= {'cameraState', 'followTf', 'followMode', 'scene', 'publish', 'transforms',
+                                   'topics', 'layers', 'imageMode'}, panel
+            assert config['followMode'] in ('follow-pose', 'follow-position', 'follow-none')
+            assert all(set(settings) >= {'visible'} for settings in config['topics'].values())
+        if kind in ('Plot', 'StateTransitions'):
+            for path in config['paths']:
+                assert path['value'].startswith('/') and '.' in path['value'], path
+                assert path['timestampMethod'] in ('receiveTime', 'headerStamp'), path
+        if kind == 'DiagnosticSummary':
+            assert set(config) >= {'minLevel', 'pinnedIds', 'hardwareIdFilter', 'topicToRender'}
+    assert _message_paths(layout), 'no panel plots a field'
+
+
+def test_every_topic_and_field_of_the_foxglove_layout_is_in_the_recording(messages):
+    """What the layout's panels subscribe to is what a recording of the application holds, with the
+    message types those panels draw, and every plotted field exists and has the right kind."""
+    layout = _layout()
+    types = {topic: entries[-1][1].__msgtype__ for topic, entries in messages.items()}
+    used = []
+    for panel, config in layout['configById'].items():
+        kind = panel.partition('!')[0]
+        if kind == '3D':
+            for topic in config['topics']:
+                assert types.get(topic) in THREE_D_TYPES, (panel, topic, types.get(topic))
+                used.append(topic)
+            frames = {t.child_frame_id for topic in ('/tf', '/tf_static') for _, m in messages[topic]
+                      for t in m.transforms} | {'world'}
+            assert config['followTf'] in frames
+        if kind == 'DiagnosticSummary':
+            assert types.get(config['topicToRender']) == 'diagnostic_msgs/msg/DiagnosticArray'
+            used.append(config['topicToRender'])
+    for panel, path in _message_paths(layout):
+        topic, _, fields = path.partition('.')  # a ROS 2 topic name holds no '.'
+        assert topic in messages, (panel, topic)
+        value = _field(messages[topic][-1][1], fields)
+        if panel.startswith('Plot!'):
+            assert isinstance(value, (int, float)) and not isinstance(value, bool), (path, value)
+        else:
+            assert isinstance(value, str) and value, (path, value)
+        used.append(topic)
+    # the 3-D panel draws TF without being told; the layout shows the markers, the Tasks, the health
+    assert f'/{APP}/markers' in used and '/diagnostics' in used and '/tf' in messages

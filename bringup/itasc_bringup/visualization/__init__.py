@@ -5,7 +5,9 @@ the composites through their topics, so it lives in itasc_bringup next to them, 
 Composition Pattern's packages (paper §3.1: an entity knows its own composite only). The
 bootstrap calls :func:`start_visualization` once the root composite is up: diagnostics on its own
 node (they read the Timer), robot_description, TF and markers in a process of their own
-(:mod:`.node`), off the control path.
+(:mod:`.node`), off the control path. Neither subscribes to a topic the tick publishes: they take
+the newest samples of the output ports in this process when they draw (:mod:`.feed`), so the
+control loop pays nothing per tick for them.
 """
 
 from __future__ import annotations
@@ -44,8 +46,11 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Ca
     from itasc_core.composition.model import walk
 
     from ..apps import resolve_app
+    from ..model import load_application
     from .diagnostics import Diagnostics
-    from .node import LATCHED_QOS, TF_QOS
+    from .feed import FeedWriter, LatestSamples, display_topics
+    from .node import DISPLAY_RATE, LATCHED_QOS, TF_QOS
+    from itasc_msgs.msg import SolverStatus
 
     if recorder is not None:
         for topic, type_name in GLOBAL_TOPICS.items():
@@ -53,14 +58,18 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Ca
     composites = {m.name: path for path, m in walk(model)}
     solvers = [f'{path}/Solver/status' for path, m in walk(model) if any(e.name == 'Solver' for e in m.entities)]
     Diagnostics(node, app=model.name, composites=composites, timer=lambda: composer.timer,
-                solver_topics=solvers)  # lives as long as the node's subscriptions and timer
+                solvers=LatestSamples(node, {t: SolverStatus for t in solvers}))  # lives as long as the node
     path = resolve_app(app)
     if not _is_application(path):
         return lambda: None  # a composition model of the pattern itself: no robots to show
-    process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve())],
-                               stdout=subprocess.DEVNULL, preexec_fn=_end_with_parent)
+    topics = display_topics(load_application(path), f'/{model.name}')
+    process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve()),
+                                '--feed'], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                               preexec_fn=_end_with_parent)
+    feed = FeedWriter(node, LatestSamples(node, topics), process.stdin.fileno(), rate=DISPLAY_RATE)
 
     def end() -> None:
+        feed.close()
         if process.poll() is None:
             process.terminate()
             try:
@@ -68,5 +77,6 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Ca
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+        process.stdin.close()  # nothing is buffered in it: the feed writes to its descriptor
     atexit.register(end)
     return end

@@ -7,20 +7,27 @@ any other state (configuring, stopping, stopped) WARN. The values are the achiev
 tick time of the Timer (paper §6.2), the Solver's status and the last Safety reason (the detail of
 the newest ``e_emergency``, e.g. ``Driver_panda_silent: stale on value``).
 
-It lives in the bootstrap, next to the Timer it reads, as subscriptions and a 1 Hz timer on the
-bootstrap's node: none of it runs inside the tick.
+It lives in the bootstrap, next to the Timer it reads, as subscriptions to the composites' state
+and event topics (written on a change only) and a 1 Hz timer on the bootstrap's node: none of it
+runs inside the tick. The Solver status, written every tick, is not subscribed to (a reader would
+cost each tick a send, see :mod:`.feed`): it is the Solver output's newest sample when a status
+is published.
 """
 
 from __future__ import annotations
 
 import statistics
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
 from itasc_core.communication.qos import DATA_QOS, EVENT_QOS, STATE_QOS
-from itasc_msgs.msg import CoordinatorState, Event, SolverStatus
+from itasc_msgs.msg import CoordinatorState, Event
+
+if TYPE_CHECKING:
+    from .feed import LatestSamples
 
 __all__ = ['Diagnostics', 'level_of', 'DIAGNOSTICS_TOPIC']
 
@@ -37,24 +44,23 @@ def level_of(state: str) -> bytes:
 
 
 class Diagnostics:
-    """Publishes one DiagnosticStatus per composite of ``composites`` (name -> namespace)."""
+    """Publishes one DiagnosticStatus per composite of ``composites`` (name -> namespace); the
+    Solver status is the newest of ``solvers``."""
 
     def __init__(self, node: Node, *, app: str, composites: dict[str, str], timer: Callable[[], object | None],
-                 solver_topics: list[str], period: float = 1.0) -> None:
+                 solvers: 'LatestSamples', period: float = 1.0) -> None:
         self._node = node
         self._app = app
         self._timer = timer
         self.namespaces = composites
         self.states = {name: '-' for name in composites}
         self.safety_reason = ''
-        self.solver_status = '-'
+        self._solvers = solvers
         self._shown: dict[str, tuple[bytes, str]] = {}
         self.publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DATA_QOS)
         for namespace in composites.values():
             node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
             node.create_subscription(Event, f'{namespace}/events', self._on_event, EVENT_QOS)
-        for topic in solver_topics:
-            node.create_subscription(SolverStatus, topic, self._on_solver, DATA_QOS)
         self._periodic = node.create_timer(period, self.publish)
 
     def _on_state(self, msg: CoordinatorState) -> None:
@@ -67,8 +73,10 @@ class Diagnostics:
             self.safety_reason = msg.detail
             self._publish_if_changed(force=any(s.startswith('Safety') for s in self.states.values()))
 
-    def _on_solver(self, msg: SolverStatus) -> None:
-        self.solver_status = msg.status
+    @property
+    def solver_status(self) -> str:
+        statuses = [msg.status for _, msg in self._solvers.items()]
+        return ', '.join(statuses) if statuses else '-'
 
     def _publish_if_changed(self, *, force: bool = False) -> None:
         if force or any(self._shown.get(s.name) != (s.level, s.message) for s in self.statuses()):
@@ -86,6 +94,7 @@ class Diagnostics:
 
     def statuses(self) -> list[DiagnosticStatus]:
         timing = self._timing()
+        solver_status = self.solver_status
         out = []
         for name, namespace in self.namespaces.items():
             state = self.states[name]
@@ -95,7 +104,7 @@ class Diagnostics:
             out.append(DiagnosticStatus(
                 level=level, name=f'{self._app}: {namespace}', message=message, hardware_id=self._app,
                 values=[KeyValue(key='state', value=state), *timing,
-                        KeyValue(key='solver status', value=self.solver_status),
+                        KeyValue(key='solver status', value=solver_status),
                         KeyValue(key='last Safety reason', value=self.safety_reason)]))
         return out
 

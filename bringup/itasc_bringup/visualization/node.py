@@ -1,16 +1,20 @@
 """The visualization process of a running application: ``robot_description``, TF and markers
 (see :mod:`.description`, :mod:`.frames`, :mod:`.markers`).
 
-It observes the application only through its topics, at a display rate (30 Hz), in a process of
-its own: nothing of it runs in, or competes for the interpreter with, the control tick (paper §6.2:
-the Timer's tick computes the Tasks, nothing else). It publishes
+It draws at a display rate (30 Hz), in a process of its own: nothing of it runs in, or competes
+for the interpreter with, the control tick (paper §6.2: the Timer's tick computes the Tasks,
+nothing else). Started by the bootstrap (``--feed``), it takes the newest samples of the data flow
+it draws from (the Driver's joint state, the Tasks' ``Rows/state``, ...) from the bootstrap's
+:class:`~.feed.FeedWriter` on its stdin: it adds no DDS reader to a topic the tick publishes,
+since every reader costs the tick a send (:mod:`.feed`). Run on its own it subscribes to those
+topics instead. It publishes
 
 * ``<app>/<robot>/robot_description`` (``std_msgs/String``, transient local), per robot;
 * ``/tf_static`` once (fixed joints, object frames, fixed placements) and ``/tf`` at the display
   rate from each robot's newest Driver joint state, stamped with it (as robot_state_publisher);
 * ``<app>/markers`` (``visualization_msgs/MarkerArray``) at the display rate.
 
-    python -m itasc_bringup.visualization.node <app name or model path> [--rate 30]
+    python -m itasc_bringup.visualization.node <app name or model path> [--rate 30] [--feed]
 """
 
 from __future__ import annotations
@@ -18,11 +22,12 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
 import rclpy
-from geometry_msgs.msg import PoseStamped, TransformStamped
+from geometry_msgs.msg import TransformStamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -37,6 +42,7 @@ from itasc_msgs.msg import CoordinatorState, TaskState
 
 from ..model.schema import Application
 from .description import robot_description
+from .feed import FeedReader, display_topics
 from .frames import WORLD, Edge, FrameTree, quaternion_xyzw
 from .markers import TaskView, scene_markers
 
@@ -84,7 +90,8 @@ def _se3(pose) -> pin.SE3:
 class Visualizer(Node):
     """Node ``visualization`` in the application's namespace."""
 
-    def __init__(self, app: Application, *, namespace: str, rate: float = DISPLAY_RATE) -> None:
+    def __init__(self, app: Application, *, namespace: str, rate: float = DISPLAY_RATE,
+                 feed: int | None = None) -> None:
         super().__init__('visualization', namespace=namespace)
         self.app = app
         program = f'{namespace}/{app.program.name}'
@@ -103,22 +110,28 @@ class Visualizer(Node):
 
         self._joints: dict[str, JointState] = {}
         self._shown: dict[str, object] = {}
-        for robot in app.program.robots:
-            self.create_subscription(JointState, f'{namespace}/Driver_{robot.name}/joint_state',
-                                     lambda msg, r=robot.name: self._joints.__setitem__(r, msg), DATA_QOS)
-        for sensor in app.sensors:
-            self.create_subscription(PoseStamped, f'{namespace}/Sensor_{sensor.object}/pose',
-                                     lambda msg, o=sensor.object: self._set_object(o, _se3(msg.pose)), DATA_QOS)
-        moving = {o.name for o in app.program.objects if o.motion}
         self.views = {t.name: TaskView(t.name) for t in app.program.tasks}
-        for task in app.program.tasks:
+        self._task_seen: dict[str, float] = {}
+        for task in app.program.tasks:  # on a change of the Task's state only (latched)
             self.create_subscription(CoordinatorState, f'{program}/{task.name}/state',
                                      lambda msg, t=task.name: self._on_state(t, msg), STATE_QOS)
-            self.create_subscription(TaskState, f'{program}/{task.name}/Rows/state', self._on_task, DATA_QOS)
-            if task.type != 'joint' and task.o1.partition('/')[0] in moving:  # a moving target
-                self.create_subscription(Float64MultiArray, f'{program}/Scene/relation_{task.name}',
-                                         lambda msg, t=task: self._on_relation(t, msg), DATA_QOS)
-        self._task_seen: dict[str, float] = {}
+        # the data flow the pictures are drawn from: one handler per topic
+        self._handlers: dict[str, Callable] = {}
+        topics = display_topics(app, namespace)
+        for robot in app.program.robots:
+            self._handlers[f'{namespace}/Driver_{robot.name}/joint_state'] = \
+                lambda msg, r=robot.name: self._joints.__setitem__(r, msg)
+        for sensor in app.sensors:
+            self._handlers[f'{namespace}/Sensor_{sensor.object}/pose'] = \
+                lambda msg, o=sensor.object: self._set_object(o, _se3(msg.pose))
+        for task in app.program.tasks:
+            self._handlers[f'{program}/{task.name}/Rows/state'] = self._on_task
+            self._handlers[f'{program}/Scene/relation_{task.name}'] = lambda msg, t=task: self._on_relation(t, msg)
+        self._handlers = {topic: self._handlers[topic] for topic in topics}
+        self._feed = FeedReader(feed, topics) if feed is not None else None
+        if self._feed is None:  # on its own: subscribed (each reader costs the tick its publish)
+            for topic, msg_type in topics.items():
+                self.create_subscription(msg_type, topic, self._handlers[topic], DATA_QOS)
         self._timer = self.create_timer(1.0 / rate, self._display)
 
     def _set_object(self, name: str, pose: pin.SE3) -> None:
@@ -142,6 +155,9 @@ class Visualizer(Node):
             self._set_object(task.o1.partition('/')[0], pose)
 
     def _display(self) -> None:
+        if self._feed is not None:
+            for topic, msg in self._feed.read():
+                self._handlers[topic](msg)
         now = self.get_clock().now().nanoseconds * 1e-9
         for task, seen in self._task_seen.items():  # a Task that stopped reporting is off
             if now - seen > 0.5:
@@ -176,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
                                      'of a running iTaSC application.')
     parser.add_argument('app', help='application name or model path')
     parser.add_argument('--rate', type=float, default=DISPLAY_RATE, help='display rate (Hz)')
+    parser.add_argument('--feed', action='store_true',
+                        help='take the data flow from the bootstrap on stdin (see .feed) instead of subscribing')
     args = parser.parse_args(argv)
     try:
         app = load_application(resolve_app(args.app))
@@ -189,7 +207,8 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
-        node = Visualizer(app, namespace=f'/{app.name}', rate=args.rate)
+        node = Visualizer(app, namespace=f'/{app.name}', rate=args.rate,
+                          feed=sys.stdin.fileno() if args.feed else None)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -1,0 +1,137 @@
+"""The display feed (itasc_bringup.visualization.feed, issue #13): the bootstrap hands the newest
+samples of its output ports to the visualization process down a pipe, at the display rate, never
+blocking and never adding a DDS reader to a topic the tick publishes."""
+
+import os
+
+from sensor_msgs.msg import JointState
+
+from itasc_bringup.visualization.feed import FeedReader, FeedWriter, LatestSamples
+from itasc_core.communication.ports import LocalBus
+from itasc_msgs.msg import TaskState
+
+JOINTS = '/app/Driver_panda/joint_state'
+ROWS = '/app/itasc/T/Rows/state'
+TOPICS = {JOINTS: JointState, ROWS: TaskState}
+
+
+class _Node:
+    """What the feed uses of a node: timers and the graph (no publisher anywhere else)."""
+
+    def __init__(self):
+        self.subscriptions = []
+
+    def create_timer(self, period, callback):
+        return callback
+
+    def destroy_timer(self, timer):
+        pass
+
+    def count_publishers(self, topic):
+        return 0
+
+    def create_subscription(self, *args):
+        self.subscriptions.append(args)
+
+
+class _Port:
+    """An output port as LocalBus knows it: its topic and its newest sample."""
+
+    def __init__(self, topic):
+        self.topic = topic
+        self.last = None
+
+
+def _joints(i: int, n: int = 7) -> JointState:
+    msg = JointState(name=[f'joint{k}' for k in range(n)], position=[float(i)] * n)
+    msg.header.stamp.sec = i
+    return msg
+
+
+def _ports():
+    ports = {topic: _Port(topic) for topic in TOPICS}
+    for port in ports.values():
+        LocalBus.register(port)
+    return ports
+
+
+def _unregister(ports):
+    for port in ports.values():
+        LocalBus.unregister(port)
+
+
+def test_the_newest_samples_arrive_once_each_without_a_subscription():
+    node, ports = _Node(), _ports()
+    read_fd, write_fd = os.pipe()
+    try:
+        writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+        reader = FeedReader(read_fd, TOPICS)
+        writer.send()
+        assert reader.read() == [] and writer.frames == 0  # nothing written yet
+        for i in range(3):  # ticks between two display cycles: only the newest goes
+            ports[JOINTS].last = _joints(i)
+        ports[ROWS].last = TaskState(task='T', error_norm=0.5, active=True)
+        writer.send()
+        got = dict(reader.read())
+        assert got[JOINTS].header.stamp.sec == 2 and list(got[JOINTS].position) == [2.0] * 7
+        assert got[ROWS].task == 'T' and got[ROWS].error_norm == 0.5 and got[ROWS].active
+        ports[JOINTS].last = _joints(3)
+        writer.send()
+        assert [topic for topic, _ in reader.read()] == [JOINTS]  # the Task's state did not change
+        writer.send()
+        assert reader.read() == []
+        assert node.subscriptions == []
+    finally:
+        _unregister(ports)
+        os.close(read_fd)
+        os.close(write_fd)
+
+
+def test_a_full_pipe_loses_frames_never_blocks_nor_corrupts_them():
+    node, ports = _Node(), _ports()
+    read_fd, write_fd = os.pipe()
+    try:
+        writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+        reader = FeedReader(read_fd, TOPICS)
+        i = 0
+        while writer.dropped < 3:  # nobody reads: the pipe fills up, frames are dropped
+            i += 1
+            ports[JOINTS].last = _joints(i, n=300)  # frames of ~10 kB: partial writes happen
+            writer.send()
+        received = [msg for _, msg in reader.read()]
+        stamps = [msg.header.stamp.sec for msg in received]
+        assert stamps and stamps == sorted(set(stamps)) and len(stamps) < i  # in order, some lost
+        assert all(list(msg.position) == [float(msg.header.stamp.sec)] * 300 for msg in received)  # whole
+        writer.send()  # the rest of a frame cut by the full pipe, then the newest again
+        ports[JOINTS].last = _joints(i + 1, n=300)
+        writer.send()
+        writer.send()
+        later = [msg for _, msg in reader.read()]
+        assert later[-1].header.stamp.sec == i + 1 and len(later[-1].position) == 300
+    finally:
+        _unregister(ports)
+        os.close(read_fd)
+        os.close(write_fd)
+
+
+def test_a_gone_reader_ends_the_feed_and_a_gone_writer_is_seen():
+    node, ports = _Node(), _ports()
+    read_fd, write_fd = os.pipe()
+    try:
+        reader = FeedReader(read_fd, TOPICS)
+        writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+        os.close(read_fd)
+        ports[JOINTS].last = _joints(1)
+        writer.send()  # EPIPE: the visualization process is gone
+        writer.send()
+        read_fd, other = os.pipe()
+        reader = FeedReader(read_fd, TOPICS)
+        os.close(other)
+        assert reader.read() == [] and reader.closed
+    finally:
+        _unregister(ports)
+        for fd in (read_fd, write_fd):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
