@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
-import tempfile
-from pathlib import Path
+
+from itasc_core.communication.dds import profile_file
 
 __all__ = ['PROFILE', 'private_domain', 'select_profile']
 
@@ -47,11 +46,5 @@ def private_domain() -> int:
 
 def select_profile() -> None:
     """Point this process's Fast DDS at :data:`PROFILE` (before ``rclpy.init``)."""
-    digest = hashlib.sha256(PROFILE.encode()).hexdigest()[:16]
-    path = Path(tempfile.gettempdir()) / f'itasc_replay_fastdds_{digest}.xml'
-    if not path.exists():
-        partial = path.with_suffix(f'.{os.getpid()}.tmp')
-        partial.write_text(PROFILE)
-        partial.replace(path)
-    os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(path)
+    os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(profile_file(PROFILE, name='itasc_replay_fastdds'))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'  # rmw_fastrtps keeps the profile's transports

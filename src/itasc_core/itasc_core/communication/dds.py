@@ -46,7 +46,7 @@ import re
 import tempfile
 from pathlib import Path
 
-__all__ = ['configure_dds', 'peers_profile', 'DdsSettingsError', 'PROFILE', 'LOCALHOST_PROFILE',
+__all__ = ['configure_dds', 'peers_profile', 'profile_file', 'DdsSettingsError', 'PROFILE', 'LOCALHOST_PROFILE',
            'PEERS_TEMPLATE', 'PEERS_RANGE']
 
 PROFILE = Path(__file__).with_name('fastdds.xml')
@@ -81,8 +81,14 @@ def peers_profile(*, peers: list[str], interfaces: list[str]) -> Path:
     whitelist = (f'<interfaceWhiteList>{"".join(f"<address>{a}</address>" for a in interfaces)}'
                  '</interfaceWhiteList>') if interfaces else ''
     text = PEERS_TEMPLATE.read_text().format(range=PEERS_RANGE, whitelist=whitelist, peers=_locators(peers))
+    return profile_file(text, name='itasc_fastdds_peers')
+
+
+def profile_file(text: str, *, name: str) -> Path:
+    """A Fast DDS profile ``text`` as a file ``<name>_<digest>.xml`` in the temporary directory,
+    named after its content and written once (atomically: processes starting together share it)."""
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    path = Path(tempfile.gettempdir()) / f'itasc_fastdds_peers_{digest}.xml'
+    path = Path(tempfile.gettempdir()) / f'{name}_{digest}.xml'
     if not path.exists():
         partial = path.with_suffix(f'.{os.getpid()}.tmp')
         partial.write_text(text)
