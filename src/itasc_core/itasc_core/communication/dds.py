@@ -15,11 +15,15 @@ their own (``FASTRTPS_DEFAULT_PROFILES_FILE``), it points Fast DDS at ours:
   rmw_fastrtps (Jazzy) would otherwise implement with a shared-memory transport of its own; the
   range becomes ``SYSTEM_DEFAULT`` so that rmw_fastrtps leaves the profile's transports alone.
 
-Every profile asks for 4 MiB socket receive buffers (the kernel's default is 208 KiB, about 20 ms
-of a 10,000 events/s storm): a Python process busy for longer than that would otherwise have the
-kernel drop datagrams, and every drop costs a reliable reader a repair while the writer's history
-fills up (measured: 181,000 drops and lost events in a 10 s storm at 10,000/s; none with 4 MiB).
-Linux caps the size at ``net.core.rmem_max``; raise it where it is lower (README).
+Every profile asks for 4 MiB socket receive buffers, which the kernel doubles (its default is
+208 KiB, about 20 ms of a 10,000 events/s storm): a process busy for longer than that would have
+the kernel drop datagrams, and a reliable reader repairs a drop only after the writer's next
+heartbeat, by when a fast writer may have dropped the sample from its history (a storm at
+10,000/s on a 2-core machine: 300,000 kernel drops with 208 KiB, 30,000-60,000 with 8 MiB; at
+5,000/s none). ``fastdds.xml`` sets it with ``sockets_size`` on the builtin transports (which sizes
+the send buffers too; the participant's ``listenSocketBufferSize`` is not applied to them), the
+others with the transport's ``receiveBufferSize``. Linux caps the size at ``net.core.rmem_max``;
+raise it where it is lower (README).
 
 Both announce their participant every 0.5 s instead of Fast DDS's 3 s. A participant's first
 announcements are sometimes missed by a peer that is busy starting (seen in about half of the runs
