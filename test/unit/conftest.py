@@ -1,8 +1,9 @@
 """Unit tests of the plain-Python iTaSC math (no ROS): make the source packages importable
-without an install, and share the robot models."""
+without an install, and share the robot models and a breakable copy of the shipped config/."""
 
 import importlib.util
 import pathlib
+import shutil
 import sys
 
 import pytest
@@ -23,3 +24,11 @@ def panda():
     robot = Robot('panda', PANDA)
     robot.add_frame('ee', 'panda_hand_tcp')
     return robot
+
+
+@pytest.fixture
+def config(tmp_path: pathlib.Path) -> pathlib.Path:
+    """A copy of the shipped config/ to break."""
+    shutil.copytree(REPO / 'config', tmp_path / 'config')
+    return tmp_path / 'config'
+

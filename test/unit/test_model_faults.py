@@ -31,24 +31,12 @@ from itasc_bringup.model.schema import Application
 from itasc_core.composition.loader import MAX_BYTES, MAX_DEPTH, MAX_VALUES, ModelError, format_loc
 from itasc_core.composition.registry import ENTRY_POINTS, known_kind, resolve_kind
 from itasc_core.computation.library import SineSource
+from model_files import edit_yaml
 from processes import Spawned
 
 REPO = Path(__file__).resolve().parents[2]
 #: What a refusal may take in-process (the bootstrap's bound, 5 s, includes starting Python).
 BOUND = 3.0
-
-
-@pytest.fixture
-def config(tmp_path: Path) -> Path:
-    """A copy of the shipped config/ to break."""
-    shutil.copytree(REPO / 'config', tmp_path / 'config')
-    return tmp_path / 'config'
-
-
-def _edit(file: Path, change) -> None:
-    data = yaml.safe_load(file.read_text())
-    change(data)
-    file.write_text(yaml.safe_dump(data, sort_keys=False))
 
 
 def refused(app: Path) -> ModelError:
@@ -70,14 +58,14 @@ def _program(config: Path) -> Path:
 # -- the cases of issue #8, each refused today by nothing or by a traceback -----------------------------
 
 def test_a_monitor_index_beyond_the_watched_vector_is_refused(config):
-    _edit(_program(config), lambda p: p['monitors'][0].update(watch='ApproachObject.error[9]'))
+    edit_yaml(_program(config), lambda p: p['monitors'][0].update(watch='ApproachObject.error[9]'))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'monitors[0].watch'), str(err)
     assert 'ApproachObject.error[9]' in err.message and '6 values' in err.message, str(err)
 
 
 def test_an_index_of_a_single_number_is_refused(config):
-    _edit(_program(config), lambda p: p['monitors'][0].update(watch='ApproachObject.error_norm[0]'))
+    edit_yaml(_program(config), lambda p: p['monitors'][0].update(watch='ApproachObject.error_norm[0]'))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'monitors[0].watch'), str(err)
 
@@ -85,27 +73,27 @@ def test_an_index_of_a_single_number_is_refused(config):
 @pytest.mark.parametrize('value', [math.nan, math.inf, -math.inf])
 def test_a_non_finite_task_weight_is_refused(config, value):
     task = config / 'tasks' / 'approach_object.yaml'
-    _edit(task, lambda t: t['weights'].__setitem__(1, value))
+    edit_yaml(task, lambda t: t['weights'].__setitem__(1, value))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(task), 'weights[1]'), str(err)
     assert str(value) in err.message and 'finite' in err.message, str(err)
 
 
 def test_an_object_position_with_nan_is_refused(config):
-    _edit(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
+    edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'objects[0].xyz[2]'), str(err)
 
 
 def test_a_monitor_threshold_of_nan_is_refused(config):
-    _edit(_program(config), lambda p: p['monitors'][0].update(threshold=math.nan))
+    edit_yaml(_program(config), lambda p: p['monitors'][0].update(threshold=math.nan))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'monitors[0].threshold'), str(err)
 
 
 def test_a_negative_minimum_distance_is_refused(config):
     task = config / 'tasks' / 'avoid_obstacle.yaml'
-    _edit(task, lambda t: t.update(d_min=-0.15))
+    edit_yaml(task, lambda t: t.update(d_min=-0.15))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(task), 'd_min'), str(err)
     assert '-0.15' in err.message, str(err)
@@ -113,7 +101,7 @@ def test_a_negative_minimum_distance_is_refused(config):
 
 def test_a_minimum_distance_above_the_maximum_is_refused(config):
     task = config / 'tasks' / 'avoid_obstacle.yaml'
-    _edit(task, lambda t: t.update(d_min=0.3, d_max=0.2))
+    edit_yaml(task, lambda t: t.update(d_min=0.3, d_max=0.2))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(task), 'd_max'), str(err)
     assert '0.2' in err.message and '0.3' in err.message, str(err)
@@ -155,13 +143,13 @@ def test_deep_nesting_through_includes_is_refused(config):
     for k in range(MAX_DEPTH + 1):
         (config / f'n{k}.yaml').write_text(f'inner: {{include: n{k + 1}.yaml}}\n')
     (config / f'n{MAX_DEPTH + 1}.yaml').write_text('1\n')
-    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '../n0.yaml'}))
+    edit_yaml(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '../n0.yaml'}))
     err = refused(_app(config))
     assert f'deeper than {MAX_DEPTH}' in err.message and err.path, str(err)
 
 
 def test_an_include_of_dev_zero_is_refused(config):
-    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '/dev/zero'}))
+    edit_yaml(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '/dev/zero'}))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'tasks[0].include'), str(err)
     assert '/dev/zero' in err.message and 'outside' in err.message, str(err)
@@ -176,7 +164,7 @@ def test_an_include_of_a_special_or_oversized_file_is_refused(config, special):
         target.mkdir()
     else:
         target.write_text('name: x\n' + '#' * MAX_BYTES + '\n')
-    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '../tasks/special.yaml'}))
+    edit_yaml(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '../tasks/special.yaml'}))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'tasks[0].include'), str(err)
     assert 'special.yaml' in err.message, str(err)
@@ -185,7 +173,7 @@ def test_an_include_of_a_special_or_oversized_file_is_refused(config, special):
 def test_an_include_outside_the_model_folders_is_refused(config, tmp_path):
     outside = tmp_path / 'elsewhere.yaml'
     outside.write_text((config / 'tasks' / 'retreat.yaml').read_text())
-    _edit(_program(config), lambda p: p['tasks'].__setitem__(2, {'include': '../../elsewhere.yaml'}))
+    edit_yaml(_program(config), lambda p: p['tasks'].__setitem__(2, {'include': '../../elsewhere.yaml'}))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'tasks[2].include'), str(err)
     assert str(outside) in err.message and 'outside' in err.message, str(err)
@@ -202,13 +190,13 @@ def test_a_model_file_beyond_the_size_limit_is_refused_without_parsing_it(config
 
 
 def test_too_many_values_are_refused(config):
-    _edit(_program(config), lambda p: p.update(name=[[0] * 1000] * (MAX_VALUES // 1000 + 1)))
+    edit_yaml(_program(config), lambda p: p.update(name=[[0] * 1000] * (MAX_VALUES // 1000 + 1)))
     err = refused(_app(config))
     assert err.file == str(_program(config)) and err.path.startswith('name['), str(err)
 
 
 def test_a_task_included_twice_is_reported_against_the_including_program(config):
-    _edit(_program(config), lambda p: p['tasks'].append({'include': '../tasks/retreat.yaml'}))
+    edit_yaml(_program(config), lambda p: p['tasks'].append({'include': '../tasks/retreat.yaml'}))
     err = refused(_app(config))
     assert (err.file, err.path) == (str(_program(config)), 'tasks[3].include'), str(err)
     assert 'included twice' in err.message and 'tasks[2]' in err.message, str(err)
@@ -218,7 +206,7 @@ def test_a_task_included_twice_is_reported_against_the_including_program(config)
 
 def test_an_unknown_entity_kind_of_a_pattern_model_is_refused_at_load_time(config):
     program = config / 'pattern' / 'program.yaml'
-    _edit(program, lambda p: p['entities'][2].update(kind='Mixer'))
+    edit_yaml(program, lambda p: p['entities'][2].update(kind='Mixer'))
     err = refused(config / 'apps' / 'pattern_demo.yaml')
     assert (err.file, err.path) == (str(program), 'entities[2].kind'), str(err)
     assert "'Mixer'" in err.message, str(err)
@@ -226,7 +214,7 @@ def test_an_unknown_entity_kind_of_a_pattern_model_is_refused_at_load_time(confi
 
 def test_an_unknown_port_of_a_pattern_model_is_refused_at_load_time(config):
     program = config / 'pattern' / 'program.yaml'
-    _edit(program, lambda p: p['connections'][0].update({'from': 'track.commands'}))
+    edit_yaml(program, lambda p: p['connections'][0].update({'from': 'track.commands'}))
     err = refused(config / 'apps' / 'pattern_demo.yaml')
     assert (err.file, err.path) == (str(program), 'connections[0].from'), str(err)
     assert 'commands' in err.message, str(err)
@@ -234,7 +222,7 @@ def test_an_unknown_port_of_a_pattern_model_is_refused_at_load_time(config):
 
 def test_an_unknown_parameter_of_a_pattern_entity_is_refused_at_load_time(config):
     app = config / 'apps' / 'pattern_demo.yaml'
-    _edit(app, lambda a: a['composite']['entities'][1].update(parameters={'sise': 2}))
+    edit_yaml(app, lambda a: a['composite']['entities'][1].update(parameters={'sise': 2}))
     err = refused(app)
     assert (err.file, err.path) == (str(app), 'composite.entities[1].parameters.sise'), str(err)
 
@@ -244,7 +232,7 @@ def test_a_kind_naming_a_module_is_never_imported(config, tmp_path, monkeypatch)
     (tmp_path / 'model_code.py').write_text(f'open({str(marker)!r}, "w").close()\nclass Thing: pass\n')
     monkeypatch.syspath_prepend(str(tmp_path))
     app = config / 'apps' / 'pattern_demo.yaml'
-    _edit(app, lambda a: a['composite']['entities'][1].update(kind='model_code:Thing'))
+    edit_yaml(app, lambda a: a['composite']['entities'][1].update(kind='model_code:Thing'))
     err = refused(app)
     assert (err.file, err.path) == (str(app), 'composite.entities[1].kind'), str(err)
     assert not marker.exists(), 'a kind in the model imported code'
@@ -505,9 +493,9 @@ def _cases(config: Path, tmp_path: Path) -> list[tuple[Path, str]]:
     twice.write_text(_app(config).read_text().replace('  rate: 100\n', '  rate: 100\n  rate: 5\n'))
     deep = tmp_path / 'deep.yaml'
     deep.write_text('application:\n  rate: ' + '[' * 20000 + ']' * 20000 + '\n')
-    _edit(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '/dev/zero'}))
+    edit_yaml(_program(config), lambda p: p['tasks'].__setitem__(0, {'include': '/dev/zero'}))
     kind = config / 'pattern' / 'program.yaml'
-    _edit(kind, lambda p: p['entities'][2].update(kind='Mixer'))
+    edit_yaml(kind, lambda p: p['entities'][2].update(kind='Mixer'))
     return [(huge, f'{huge}: '), (twice, f'{twice}: application.rate: '), (deep, f'{deep}: application.rate[0]'),
             (_app(config), f'{_program(config)}: tasks[0].include: '),
             (config / 'apps' / 'pattern_demo.yaml', f'{kind}: entities[2].kind: ')]

@@ -4,30 +4,15 @@ exit 2 from the bootstrap, nothing started. A Running sub-FSM may wait for a map
 
 from __future__ import annotations
 
-import shutil
 import sys
 from pathlib import Path
 
 import pytest
-import yaml
+from model_files import edit_yaml
 from processes import Spawned
 
 from itasc_bringup.apps import load_composition
 from itasc_core.composition.loader import ModelError
-
-REPO = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture
-def config(tmp_path: Path) -> Path:
-    shutil.copytree(REPO / 'config', tmp_path / 'config')
-    return tmp_path / 'config'
-
-
-def _edit(file: Path, change) -> None:
-    data = yaml.safe_load(file.read_text())
-    change(data)
-    file.write_text(yaml.safe_dump(data, sort_keys=False))
 
 
 def _pick(config: Path) -> Path:
@@ -35,7 +20,7 @@ def _pick(config: Path) -> Path:
 
 
 def _event(config: Path, k: int, **changes) -> None:
-    _edit(_pick(config), lambda d: d['application']['events'][k].update(changes))
+    edit_yaml(_pick(config), lambda d: d['application']['events'][k].update(changes))
 
 
 def refused(app: Path) -> ModelError:
@@ -76,7 +61,7 @@ def test_a_wrong_service_mapping_is_refused_naming_file_and_path(config):
 
 
 def test_an_event_the_running_sub_fsm_waits_for_needs_someone_to_raise_it(config):
-    _edit(_pick(config), lambda d: d['application'].pop('events'))
+    edit_yaml(_pick(config), lambda d: d['application'].pop('events'))
     err = refused(_pick(config))
     program = config / 'programs' / 'pick_with_gripper.yaml'
     assert (err.file, err.path) == (str(program), 'running.transitions[1].when[0]'), str(err)
@@ -85,7 +70,7 @@ def test_an_event_the_running_sub_fsm_waits_for_needs_someone_to_raise_it(config
 
 def test_a_pattern_model_s_outside_event_is_checked_too(config):
     program = config / 'pattern' / 'program.yaml'
-    _edit(program, lambda d: d.update(events=[{'topic': '/plc/go', 'type': 'std_msgs/msg/Empty', 'field': 'data',
+    edit_yaml(program, lambda d: d.update(events=[{'topic': '/plc/go', 'type': 'std_msgs/msg/Empty', 'field': 'data',
                                                'value': True, 'event': 'e_go'}]))
     err = refused(config / 'apps' / 'pattern_demo.yaml')
     assert (err.file, err.path) == (str(program), 'events[0].field'), str(err)
