@@ -56,41 +56,17 @@ def run_once(rate: float, seconds: float, app: str | None = None) -> dict:
     from itasc_core.communication.dds import configure_dds
     configure_dds()
     start = time.monotonic()
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
 
-    from itasc_core.communication.events import EventRaiser
-    from itasc_core.composition.composer import bring_up
-    from itasc_core.composition.deployment import Runtime, make_executor
-    from itasc_core.composition.model import CompositeModel, walk
-    from itasc_core.entity import CompositeContext
+    from inprocess import run_application
+    from itasc_core.composition.model import CompositeModel
 
     if app is None:
         spec = CompositeModel.model_validate(model(rate))
     else:
         from itasc_bringup.apps import load_composition
         spec = load_composition(app).model_copy(update={'rate': rate})
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    executor = make_executor()
-    runtime = Runtime(executor=executor)
-    root = CompositeContext(name=spec.name, namespace=f'/{spec.name}')
-    node = rclpy.create_node('bench', namespace=root.namespace)
-    executor.add_node(node)
-    composer = bring_up(model=spec, context=root, runtime=runtime)
-    raiser = EventRaiser(node, topic=root.events_topic)
-    while raiser.publisher.get_subscription_count() < 3:
-        executor.spin_once(timeout_sec=0.001)
-    raiser.raise_event(f'e_{spec.name}_configure')
-
-    def coordinators(c=composer):
-        yield c.coordinator
-        for child in c.children.values():
-            yield from coordinators(child)
-
-    composites = sum(1 for _ in walk(spec))
-    while not all(c.state.startswith('Active.Run.Running') for c in coordinators()) \
-            or len(list(coordinators())) < composites:
-        executor.spin_once(timeout_sec=0.001)
+    running = run_application(spec, poll=0.001)
+    executor, composer = running.executor, running.composer
     bring_up_time = time.monotonic() - start
     composer.timer.durations.clear()
     composer.timer.stamps.clear()
@@ -107,11 +83,7 @@ def run_once(rate: float, seconds: float, app: str | None = None) -> dict:
         'max_us': max(durations),
         'ticks': len(durations),
     }
-    raiser.raise_event(f'e_{spec.name}_stop')
-    while not composer.coordinator.state.endswith('NotifyStopped'):
-        executor.spin_once(timeout_sec=0.01)
-        runtime.reap()
-    rclpy.try_shutdown()
+    running.stop()
     return result
 
 

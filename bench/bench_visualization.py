@@ -60,16 +60,10 @@ def run_once(app: str, *, visualization: bool, seconds: float, settle: float, ra
 
     from itasc_core.communication.dds import configure_dds
     configure_dds()
-    import rclpy
     from rclpy.publisher import Publisher
-    from rclpy.signals import SignalHandlerOptions
 
     from itasc_bringup.apps import load_composition
-    from itasc_core.communication.events import EventRaiser
-    from itasc_core.composition.composer import bring_up
-    from itasc_core.composition.deployment import Runtime, make_executor
-    from itasc_core.composition.model import walk
-    from itasc_core.entity import CompositeContext
+    from inprocess import run_application, spin_for
 
     spent: dict[str, float] = defaultdict(float)
     calls: Counter = Counter()
@@ -86,47 +80,21 @@ def run_once(app: str, *, visualization: bool, seconds: float, settle: float, ra
     spec = load_composition(app)
     if rate is not None:
         spec = spec.model_copy(update={'rate': rate})
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    executor = make_executor()
-    runtime = Runtime(executor=executor)
-    root = CompositeContext(name=spec.name, namespace=f'/{spec.name}')
-    node = rclpy.create_node('bench', namespace=root.namespace)
-    executor.add_node(node)
-    composer = bring_up(model=spec, context=root, runtime=runtime)
-    end_visualization = lambda: None  # noqa: E731
-    if visualization:  # exactly what the bootstrap starts
-        from itasc_bringup.visualization import start_visualization
-        end_visualization = start_visualization(app, model=spec, node=node, composer=composer)
-    raiser = EventRaiser(node, topic=root.events_topic)
-    listeners, steady_since = 0, time.monotonic()
-    while listeners < 1 or time.monotonic() - steady_since < 0.5:  # the root's listeners matched
-        executor.spin_once(timeout_sec=0.01)
-        if raiser.publisher.get_subscription_count() != listeners:
-            listeners, steady_since = raiser.publisher.get_subscription_count(), time.monotonic()
-    raiser.raise_event(f'e_{spec.name}_configure')
+    end_visualization = [lambda: None]
 
-    def coordinators(c=composer):
-        yield c.coordinator
-        for child in c.children.values():
-            yield from coordinators(child)
-
-    composites = sum(1 for _ in walk(spec))
-
-    def spin_for(duration: float) -> None:
-        deadline = time.monotonic() + duration
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-
-    while not all(c.state.startswith('Active.Run.Running') for c in coordinators()) \
-            or len(list(coordinators())) < composites:
-        executor.spin_once(timeout_sec=0.01)
-    spin_for(settle)
+    def start(node, composer) -> None:  # exactly what the bootstrap starts
+        if visualization:
+            from itasc_bringup.visualization import start_visualization
+            end_visualization[0] = start_visualization(app, model=spec, node=node, composer=composer)
+    running = run_application(spec, before_configure=start)
+    executor, composer = running.executor, running.composer
+    spin_for(executor, settle)
     composer.timer.durations.clear()
     composer.timer.stamps.clear()
     spent.clear()
     calls.clear()
     cpu, display_cpu = os.times(), _children_cpu()
-    spin_for(seconds)
+    spin_for(executor, seconds)
     cpu_after, display_cpu_after = os.times(), _children_cpu()
     durations = [d * 1e6 for d in composer.timer.durations]
     result = {
@@ -142,13 +110,8 @@ def run_once(app: str, *, visualization: bool, seconds: float, settle: float, ra
                                 for topic in sorted(spent, key=spent.get, reverse=True)},
         'publishes_per_tick': {topic: n / len(durations) for topic, n in calls.items()},
     }
-    end_visualization()
-    raiser.raise_event(f'e_{spec.name}_stop')
-    deadline = time.monotonic() + 20.0
-    while not composer.coordinator.state.endswith('NotifyStopped') and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.01)
-        runtime.reap()
-    rclpy.try_shutdown()
+    end_visualization[0]()
+    running.stop()
     return result
 
 
