@@ -2,7 +2,10 @@
 samples of its output ports to the visualization process down a pipe, at the display rate, never
 blocking and never adding a DDS reader to a topic the tick publishes."""
 
+import contextlib
 import os
+
+import pytest
 
 from sensor_msgs.msg import JointState
 
@@ -48,90 +51,75 @@ def _joints(i: int, n: int = 7) -> JointState:
     return msg
 
 
-def _ports():
+@pytest.fixture
+def feed():
+    """A node, the output ports of TOPICS in this process, and a pipe (read fd, write fd)."""
     ports = {topic: _Port(topic) for topic in TOPICS}
     for port in ports.values():
         LocalBus.register(port)
-    return ports
-
-
-def _unregister(ports):
+    fds = os.pipe()
+    yield _Node(), ports, fds
     for port in ports.values():
         LocalBus.unregister(port)
+    for fd in fds:
+        with contextlib.suppress(OSError):  # a test may have closed it
+            os.close(fd)
 
 
-def test_the_newest_samples_arrive_once_each_without_a_subscription():
-    node, ports = _Node(), _ports()
-    read_fd, write_fd = os.pipe()
+def test_the_newest_samples_arrive_once_each_without_a_subscription(feed):
+    node, ports, (read_fd, write_fd) = feed
+    writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+    reader = FeedReader(read_fd, TOPICS)
+    writer.send()
+    assert reader.read() == [] and writer.frames == 0  # nothing written yet
+    for i in range(3):  # ticks between two display cycles: only the newest goes
+        ports[JOINTS].last = _joints(i)
+    ports[ROWS].last = TaskState(task='T', error_norm=0.5, active=True)
+    writer.send()
+    got = dict(reader.read())
+    assert got[JOINTS].header.stamp.sec == 2 and list(got[JOINTS].position) == [2.0] * 7
+    assert got[ROWS].task == 'T' and got[ROWS].error_norm == 0.5 and got[ROWS].active
+    ports[JOINTS].last = _joints(3)
+    writer.send()
+    assert [topic for topic, _ in reader.read()] == [JOINTS]  # the Task's state did not change
+    writer.send()
+    assert reader.read() == []
+    assert node.subscriptions == []
+
+
+def test_a_full_pipe_loses_frames_never_blocks_nor_corrupts_them(feed):
+    node, ports, (read_fd, write_fd) = feed
+    writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+    reader = FeedReader(read_fd, TOPICS)
+    i = 0
+    while writer.dropped < 3:  # nobody reads: the pipe fills up, frames are dropped
+        i += 1
+        ports[JOINTS].last = _joints(i, n=300)  # frames of ~10 kB: partial writes happen
+        writer.send()
+    received = [msg for _, msg in reader.read()]
+    stamps = [msg.header.stamp.sec for msg in received]
+    assert stamps and stamps == sorted(set(stamps)) and len(stamps) < i  # in order, some lost
+    assert all(list(msg.position) == [float(msg.header.stamp.sec)] * 300 for msg in received)  # whole
+    writer.send()  # the rest of a frame cut by the full pipe, then the newest again
+    ports[JOINTS].last = _joints(i + 1, n=300)
+    writer.send()
+    writer.send()
+    later = [msg for _, msg in reader.read()]
+    assert later[-1].header.stamp.sec == i + 1 and len(later[-1].position) == 300
+
+
+def test_a_gone_reader_ends_the_feed_and_a_gone_writer_is_seen(feed):
+    node, ports, (read_fd, write_fd) = feed
+    reader = FeedReader(read_fd, TOPICS)
+    writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+    os.close(read_fd)
+    ports[JOINTS].last = _joints(1)
+    writer.send()  # EPIPE: the visualization process is gone
+    writer.send()
+    read_fd, other = os.pipe()
+    reader = FeedReader(read_fd, TOPICS)
+    os.close(other)
     try:
-        writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
-        reader = FeedReader(read_fd, TOPICS)
-        writer.send()
-        assert reader.read() == [] and writer.frames == 0  # nothing written yet
-        for i in range(3):  # ticks between two display cycles: only the newest goes
-            ports[JOINTS].last = _joints(i)
-        ports[ROWS].last = TaskState(task='T', error_norm=0.5, active=True)
-        writer.send()
-        got = dict(reader.read())
-        assert got[JOINTS].header.stamp.sec == 2 and list(got[JOINTS].position) == [2.0] * 7
-        assert got[ROWS].task == 'T' and got[ROWS].error_norm == 0.5 and got[ROWS].active
-        ports[JOINTS].last = _joints(3)
-        writer.send()
-        assert [topic for topic, _ in reader.read()] == [JOINTS]  # the Task's state did not change
-        writer.send()
-        assert reader.read() == []
-        assert node.subscriptions == []
-    finally:
-        _unregister(ports)
-        os.close(read_fd)
-        os.close(write_fd)
-
-
-def test_a_full_pipe_loses_frames_never_blocks_nor_corrupts_them():
-    node, ports = _Node(), _ports()
-    read_fd, write_fd = os.pipe()
-    try:
-        writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
-        reader = FeedReader(read_fd, TOPICS)
-        i = 0
-        while writer.dropped < 3:  # nobody reads: the pipe fills up, frames are dropped
-            i += 1
-            ports[JOINTS].last = _joints(i, n=300)  # frames of ~10 kB: partial writes happen
-            writer.send()
-        received = [msg for _, msg in reader.read()]
-        stamps = [msg.header.stamp.sec for msg in received]
-        assert stamps and stamps == sorted(set(stamps)) and len(stamps) < i  # in order, some lost
-        assert all(list(msg.position) == [float(msg.header.stamp.sec)] * 300 for msg in received)  # whole
-        writer.send()  # the rest of a frame cut by the full pipe, then the newest again
-        ports[JOINTS].last = _joints(i + 1, n=300)
-        writer.send()
-        writer.send()
-        later = [msg for _, msg in reader.read()]
-        assert later[-1].header.stamp.sec == i + 1 and len(later[-1].position) == 300
-    finally:
-        _unregister(ports)
-        os.close(read_fd)
-        os.close(write_fd)
-
-
-def test_a_gone_reader_ends_the_feed_and_a_gone_writer_is_seen():
-    node, ports = _Node(), _ports()
-    read_fd, write_fd = os.pipe()
-    try:
-        reader = FeedReader(read_fd, TOPICS)
-        writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
-        os.close(read_fd)
-        ports[JOINTS].last = _joints(1)
-        writer.send()  # EPIPE: the visualization process is gone
-        writer.send()
-        read_fd, other = os.pipe()
-        reader = FeedReader(read_fd, TOPICS)
-        os.close(other)
         assert reader.read() == [] and reader.closed
     finally:
-        _unregister(ports)
-        for fd in (read_fd, write_fd):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        os.close(read_fd)
