@@ -39,7 +39,8 @@ class EventHub:
     def __init__(self, node: Node) -> None:
         self._node = node
         self._subscriptions: dict[str, object] = {}
-        self._receivers: dict[str, list[Receiver]] = {}
+        #: by topic, in registration order (a dict: membership is checked per event and receiver)
+        self._receivers: dict[str, dict[Receiver, None]] = {}
 
     #: The hub's node: hidden (``ros2 node list -a`` shows it), in the namespace of the composite
     #: the process was started for, where a parent's Composer looks for it.
@@ -63,32 +64,22 @@ class EventHub:
     def add(self, topic: str, receiver: Receiver) -> None:
         """Hand every event arriving on ``topic`` from now on to ``receiver(event, topic)``."""
         if topic not in self._subscriptions:
-            self._receivers[topic] = []
+            self._receivers[topic] = {}
             self._subscriptions[topic] = self._node.create_subscription(
                 Event, topic, lambda msg, topic=topic: self._dispatch(msg, topic), EVENT_QOS)
-        self._receivers[topic].append(receiver)
+        self._receivers[topic][receiver] = None
 
     def remove(self, topic: str, receiver: Receiver) -> None:
         """Stop handing ``topic``'s events to ``receiver``; the last one gone, the reader goes too."""
-        receivers = self._receivers.get(topic, [])
-        if receiver in receivers:
-            receivers.remove(receiver)
+        receivers = self._receivers.get(topic, {})
+        receivers.pop(receiver, None)
         if not receivers and topic in self._subscriptions:
             self._node.destroy_subscription(self._subscriptions.pop(topic))
             del self._receivers[topic]
 
     def _dispatch(self, msg: Event, topic: str) -> None:
         # a copy: a receiver may create or destroy entities (and their listeners) on an event
-        receivers = self._receivers.get(topic, [])
+        receivers = self._receivers.get(topic, {})
         for receiver in list(receivers):
             if receiver in receivers:
                 receiver(msg, topic)
-
-    def destroy(self) -> None:
-        """Remove the hub and its node (the process's teardown)."""
-        if self._hubs.get(self._node.context) is self:
-            del self._hubs[self._node.context]
-        executor = self._node.executor
-        if executor is not None:
-            executor.remove_node(self._node)
-        self._node.destroy_node()
