@@ -46,8 +46,8 @@ test: setup
 
 bench: setup
 	@bash "$(ROOT)/scripts/setup.sh" --bench
-	@$(ENV) && shopt -s nullglob && files=(bench/*.py) && \
-	  if [ $${#files[@]} -eq 0 ]; then echo "no bench/*.py yet"; exit 0; fi && \
+	@$(ENV) && shopt -s nullglob && files=(bench/bench_*.py) && \
+	  if [ $${#files[@]} -eq 0 ]; then echo "no bench/bench_*.py yet"; exit 0; fi && \
 	  for f in "$${files[@]}"; do echo "=== $$f"; python "$$f"; done
 
 plot: setup
