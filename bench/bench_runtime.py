@@ -99,7 +99,8 @@ def main() -> None:
     print(f'machine: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}')
     what = args.app or 'hierarchy: 5 composites, 10 functional entities'
     print(f'{what}, --deploy single, Timer at {args.rate:.0f} Hz')
-    print(f'{"run":>3} {"bring-up s":>10} {"rate Hz":>8} {"median us":>9} {"p90 us":>7} {"p99 us":>7} {"max us":>7} {"ticks":>6}')
+    print(f'{"run":>3} {"bring-up s":>10} {"rate Hz":>8} {"median us":>9} {"p90 us":>7} {"p99 us":>7} '
+          f'{"max us":>7} {"ticks":>6}')
     results = []
     for i in range(args.repeat):
         r = run_once(args.rate, args.seconds, args.app)

@@ -74,14 +74,13 @@ def bench_panda(steps: int) -> None:
     scene = Scene(robots=[robot], objects=[target, elbow])
     kp = GAIN / DT
     tasks = [
-        TaskComputation('hand', vkc=CartesianVKC('target', 'panda/ee', coordinates='log6'),
+        TaskComputation('hand', vkc=CartesianVKC(coordinates='log6'), o1='target', o2='panda/ee',
                         controller=PController(kp=kp), setpoint=FixedSetpoint(np.zeros(6)),
                         weights=HAND_COST ** 2),
-        TaskComputation('elbow', vkc=CartesianVKC('elbow', 'panda/panda_link4',
-                                                  coordinates='log6'),
+        TaskComputation('elbow', vkc=CartesianVKC(coordinates='log6'), o1='elbow', o2='panda/panda_link4',
                         output=ConstraintOutput(['x', 'y', 'z']), controller=PController(kp=kp),
                         setpoint=FixedSetpoint(np.zeros(3)), weights=ELBOW_COST ** 2),
-        TaskComputation('posture', vkc=JointVKC(), controller=PController(kp=kp),
+        TaskComputation('posture', vkc=JointVKC(scene.joint_names), controller=PController(kp=kp),
                         setpoint=FixedSetpoint(READY), weights=POSTURE_COST ** 2)]
     dense = [s for s in ('daqp', 'quadprog', 'proxqp', 'qpalm', 'piqp', 'clarabel', 'highs')
              if s in qpsolvers.available_solvers]
@@ -166,13 +165,13 @@ def bench_talos(steps: int) -> None:
     scene = Scene(robots=[robot], objects=feet + hands)
     joints = robot.joint_names[6:]
     q0 = scene.q[6:].copy()
-    tasks = [TaskComputation(f'{obj.name}', vkc=CartesianVKC(obj.name, f'talos/{frame}'),
+    tasks = [TaskComputation(f'{obj.name}', vkc=CartesianVKC(), o1=obj.name, o2=f'talos/{frame}',
                              controller=PController(kp=10.0), priority=priority,
                              setpoint=FixedSetpoint(pin.SE3.Identity()))
              for obj, frame, priority in zip(
                  feet + hands, ['left_sole_link', 'right_sole_link', 'gripper_left_base_link',
                                 'gripper_right_base_link'], [0, 0, 1, 1])]
-    tasks.append(TaskComputation('torso', vkc=CartesianVKC('world', 'talos/torso_2_link'),
+    tasks.append(TaskComputation('torso', vkc=CartesianVKC(), o1='world', o2='talos/torso_2_link',
                                  output=ConstraintOutput(['rx', 'ry', 'rz']), priority=1,
                                  weights=0.1, setpoint=FixedSetpoint(
                                      scene.relative_pose('world', 'talos/torso_2_link'))))

@@ -25,7 +25,8 @@ class Running:
     def stop(self, *, timeout: float = 20.0) -> None:
         """Stop the hierarchy in order (``e_<root>_stop``) and shut rclpy down."""
         import rclpy
-        self.raiser.raise_event(f'e_{self.name}_stop')
+        from itasc_core.communication.event_names import STOP, event
+        self.raiser.raise_event(event(self.name, STOP))
         deadline = time.monotonic() + timeout
         while not self.composer.coordinator.state.endswith('NotifyStopped') and time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.01)
@@ -41,6 +42,7 @@ def run_application(spec, *, before_configure: Callable[[Any, Any], None] | None
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from itasc_core.communication.event_names import CONFIGURE, event
     from itasc_core.communication.events import EventRaiser
     from itasc_core.composition.composer import bring_up
     from itasc_core.composition.deployment import Runtime, make_executor
@@ -59,7 +61,7 @@ def run_application(spec, *, before_configure: Callable[[Any, Any], None] | None
     raiser = EventRaiser(node, topic=root.events_topic)
     while raiser.publisher.get_subscription_count() < 1:  # the root's entities (this process's reader)
         executor.spin_once(timeout_sec=poll)
-    raiser.raise_event(f'e_{spec.name}_configure')
+    raiser.raise_event(event(spec.name, CONFIGURE))
 
     def coordinators(c=composer):
         yield c.coordinator

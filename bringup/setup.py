@@ -36,7 +36,8 @@ setup(
     zip_safe=False,
     maintainer='iTaSC-ROS2 maintainers',
     maintainer_email='itasc-ros2@example.com',
-    description='Bootstrap (root Composer) of iTaSC-ROS2 applications, the application models under config/, and the plot and graph tools.',
+    description=('Bootstrap (root Composer) of iTaSC-ROS2 applications, the application models under config/, and the '
+                 'plot and graph tools.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Set up the development environment of iTaSC-ROS2, idempotently:
 #   1. .venv/ with CPython 3.12 (the ROS 2 Jazzy wheels on PyPI exist for 3.12 only),
-#   2. pinned requirements/runtime.txt + requirements/test.txt,
+#   2. pinned requirements/runtime.txt + requirements/test.txt, and the test suite's package of kinds
+#      (test/plugins/itasc_test_kinds, editable),
 #   3. a venv-local fix of the ROS wheels' exported CMake targets (see fix_cmake_exports),
 #   4. `colcon build --symlink-install` of every package into install/.
 # Each step is skipped when its stamp (a hash of its inputs) is unchanged, so a no-op run
@@ -102,6 +103,16 @@ if ! stamp_ok "$STAMPS/requirements" "$REQ_KEY"; then
     -r "$ROOT/requirements/runtime.txt" -r "$ROOT/requirements/test.txt"
   mkdir -p "$STAMPS" && echo "$REQ_KEY" > "$STAMPS/requirements"
   rm -f "$BUILD_STAMP"   # the build depends on the venv
+fi
+
+# The test suite's package of kinds from outside the source tree (test/plugins/itasc_test_kinds):
+# a task type and a Monitor condition the project finds through their entry points only.
+KINDS_DIR="$ROOT/test/plugins/itasc_test_kinds"
+KINDS_KEY="$(hash_files $(find "$KINDS_DIR" -name '*.py' -o -name '*.toml' | LC_ALL=C sort))"
+if ! stamp_ok "$STAMPS/test-kinds" "$KINDS_KEY"; then
+  log "installing test/plugins/itasc_test_kinds (editable)"
+  "$VPY" -m pip install --disable-pip-version-check -q --no-deps --no-build-isolation -e "$KINDS_DIR"
+  mkdir -p "$STAMPS" && echo "$KINDS_KEY" > "$STAMPS/test-kinds"
 fi
 
 if [ "$WITH_BENCH" = 1 ]; then

@@ -1,16 +1,17 @@
 """Suite-wide setup. Runs before any test module, hence before rclpy is imported anywhere.
 
-Each pytest process (the main one, or each pytest-xdist worker) gets its own ROS_DOMAIN_ID
-so that concurrently running tests, and concurrent test runs, do not discover each other's
-nodes and topics. Subprocesses started by tests inherit it.
+Each pytest process (the main one, or each pytest-xdist worker) gets a ROS_DOMAIN_ID no other
+test process on this machine holds, so that concurrently running tests, and concurrent test runs,
+do not discover each other's nodes and topics. Subprocesses started by tests inherit it.
 
 Every test is also checked for processes it left running (see :func:`no_process_left_running`).
 """
+import fcntl
 import os
 import pathlib
-import re
 import signal
 import sys
+import tempfile
 import time
 
 import pytest
@@ -23,18 +24,30 @@ from processes import started_here  # noqa: E402
 
 
 def _test_domain_id() -> int:
-    """A ROS domain id in 1..101 (0, the default domain, is never used).
+    """A ROS domain id in 1..101 (0, the default domain, is never used) that no other test process
+    on this machine holds: each id is claimed by an exclusive lock on a file of its own, kept for
+    this process's life (the kernel drops it when the process ends, however it ends). Several test
+    runs at once (pytest-xdist workers, two checkouts, CI and a developer) would otherwise share a
+    domain one time in a hundred and hear each other's nodes.
 
-    Base: the id of this test run (shared by the xdist workers of one run) or the pid;
-    offset: the xdist worker index, so the workers of one run never share a domain.
-    """
-    worker = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
-    match = re.search(r'(\d+)$', worker)
-    index = int(match.group(1)) if match else 0
-    run_id = os.environ.get('PYTEST_XDIST_TESTRUNUID')
-    base = int(run_id[:8], 16) if run_id else os.getpid()
-    return 1 + (base + index) % 101
+    The search starts at an id derived from the pid, so that concurrent starts rarely contend."""
+    locks = pathlib.Path(tempfile.gettempdir()) / 'itasc_test_domains'
+    locks.mkdir(exist_ok=True)
+    start = os.getpid() % 101
+    for offset in range(101):
+        domain = 1 + (start + offset) % 101
+        handle = open(locks / f'{domain}.lock', 'w')
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            continue
+        _DOMAIN_LOCK.append(handle)
+        return domain
+    raise RuntimeError(f'all 101 test domains are held by other test processes (locks in {locks})')
 
+
+_DOMAIN_LOCK: list = []  # the open lock file of this process's domain
 
 os.environ['ROS_DOMAIN_ID'] = str(_test_domain_id())
 # Keep discovery on this machine even when the suite runs outside scripts/env.sh, with our Fast DDS

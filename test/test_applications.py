@@ -97,5 +97,6 @@ def test_mobile_manipulator_reaches_beyond_the_arm_with_the_base_moving(tmp_path
     assert np.linalg.norm(np.asarray(reach[-1].error)[:3]) < 1e-3
     driver = next(msgs for topic, msgs in of_type(messages, 'sensor_msgs/msg/JointState').items() if 'Driver' in topic)
     first, last = dict(zip(driver[0].name, driver[0].position)), dict(zip(driver[-1].name, driver[-1].position))
-    base_travel = np.hypot(last['mobile_base_x'] - first['mobile_base_x'], last['mobile_base_y'] - first['mobile_base_y'])
+    base_travel = np.hypot(last['mobile_base_x'] - first['mobile_base_x'],
+                           last['mobile_base_y'] - first['mobile_base_y'])
     assert base_travel > 0.5, f'the base moved only {base_travel:.3f} m'

@@ -77,6 +77,7 @@ def _same_shape(ours, reference, where: str = 'rosbag2_bagfile_information') -> 
 
 
 def test_a_recorded_folder_is_a_rosbag2_jazzy_bag(context, tmp_path):
+    from itasc_core.communication.qos import EVENT_DEPTH
     bag = tmp_path / 'run'
     hashes = _record(context, bag)
     assert sorted(p.name for p in bag.iterdir()) == ['metadata.yaml', 'run_0.mcap']
@@ -97,7 +98,7 @@ def test_a_recorded_folder_is_a_rosbag2_jazzy_bag(context, tmp_path):
         assert t['topic_metadata']['type_description_hash'] == hashes[name]
         assert t['topic_metadata']['serialization_format'] == 'cdr'
     assert topics['/app/state']['topic_metadata']['offered_qos_profiles'][0]['durability'] == 'transient_local'
-    assert topics['/app/events']['topic_metadata']['offered_qos_profiles'][0]['depth'] == 10000
+    assert topics['/app/events']['topic_metadata']['offered_qos_profiles'][0]['depth'] == EVENT_DEPTH
 
     # the MCAP file: times agree with metadata.yaml; rosbag2's metadata record is there
     from mcap.reader import make_reader

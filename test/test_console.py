@@ -29,7 +29,8 @@ def recorded(mcap: Path) -> dict[str, list]:
     topics: dict[str, list] = {}
     with AnyReader([mcap]) as reader:
         for connection, log_time, raw in reader.messages():
-            topics.setdefault(connection.topic, []).append((log_time * 1e-9, reader.deserialize(raw, connection.msgtype)))
+            message = reader.deserialize(raw, connection.msgtype)
+            topics.setdefault(connection.topic, []).append((log_time * 1e-9, message))
     return topics
 
 
@@ -133,7 +134,9 @@ def test_the_live_view_shows_the_tree_the_tasks_and_safety_in_red():
             except pexpect.EOF:
                 break
             shown = '\n'.join(screen.display)
-            if running is None and re.search(r'└── StayClose +Run\.Running', shown) and 'distance 0.' in shown:
+            # the children reach Running before their parent: wait for the whole tree
+            if (running is None and re.search(r'^infeasible +Run\.Running', shown, flags=re.M)
+                    and re.search(r'└── StayClose +Run\.Running', shown) and 'distance 0.' in shown):
                 running = shown
             if safety is None and 'SAFETY:' in shown and 'rate - (Safety: nothing runs)' in shown:
                 safety = (shown, [row for row in range(screen.lines) if screen.display[row].startswith('SAFETY:')],

@@ -247,7 +247,7 @@ def test_a_failure_before_running_stops_what_was_started_and_exits_2_with_the_ca
     with Spawned([*BOOTSTRAP, str(MODELS / 'configurator_fails.yaml'), '--record', str(mcap)]) as app:
         line = app.wait_for_line('SAFETY:', timeout=60)
         assert 'e_track_configure_failed from /app/program/track/configurator' in line, line
-        assert 'kp must be >= 0' in line, line
+        assert 'kp: Input should be greater than or equal to 0' in line, line
         start = time.monotonic()
         assert app.finish(timeout=30) == 2, app.output()
         assert time.monotonic() - start < 10.0

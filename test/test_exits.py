@@ -1,7 +1,8 @@
 """Ending a run, whatever state it is in (issue #8 "Exits"): SIGINT or SIGTERM during Configure,
 Start, Run, Stop or Safety stops the hierarchy in order and leaves a finished recording (exit 0,
-or 3 through Safety); SIGKILL of the bootstrap leaves a recording that ``itasc-recover`` makes
-readable, losing at most about the last second."""
+or 3 through Safety); SIGKILL of the bootstrap leaves a recording its writer process finishes,
+losing at most about the last second, and one whose writer was killed too ``itasc-recover`` makes
+readable."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
-from processes import Spawned
+from processes import Spawned, started_here
 from rosbags.highlevel import AnyReader
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
@@ -22,7 +23,8 @@ MODELS = Path(__file__).parent / 'data' / 'models'
 #: (where, command line after the bootstrap, the line to wait for before the signal, exit code)
 MOMENTS = {
     # per-composite: the root waits in Configure while the program's process starts its own
-    'Configure': (['-v', 'pattern_demo', '--deploy', 'per-composite'], '[state] program: Active.Configure.Configuring', 0),
+    'Configure': (['-v', 'pattern_demo', '--deploy', 'per-composite'], '[state] program: Active.Configure.Configuring',
+                  0),
     'Start': (['pattern_demo', '--deploy', 'per-composite'], '[state] app: Active.Start.Starting', 0),
     'Run': (['pattern_demo'], '[state] app: Active.Run.Running', 0),
     'Stop': (['pattern_demo', '--duration', '0.5'], '[state] app: Active.Stop.Stopping', 0),
@@ -50,15 +52,40 @@ def test_a_signal_in_any_state_stops_in_order_with_a_finished_recording(moment, 
     assert 'Active.Stop.Stopping' in states
 
 
-def test_a_killed_bootstrap_leaves_a_recording_itasc_recover_makes_readable(tmp_path):
-    mcap = tmp_path / 'run.mcap'
+def _killed_run(mcap: Path, *, writer_too: bool) -> float:
+    """pattern_demo recorded into ``mcap`` for a few seconds, then SIGKILL to the bootstrap (and to
+    the process writing its recording); returns when the bootstrap was killed (time.time())."""
     with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
         app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
         time.sleep(3.0)  # a run of a few seconds, then the bootstrap dies without a word
+        writers = started_here(command='itasc_bringup.recording.writer')
+        assert len(writers) == 1, writers
         killed_at = time.time()
         app.process.kill()
+        if writer_too:
+            os.kill(next(iter(writers)), signal.SIGKILL)
         app.process.wait()
-    with pytest.raises(Exception):
+    return killed_at
+
+
+def test_a_killed_bootstrap_leaves_a_finished_recording(tmp_path):
+    """Its writer process finishes the bag once the bootstrap is gone (the pipe to it ends)."""
+    mcap = tmp_path / 'run.mcap'
+    killed_at = _killed_run(mcap, writer_too=False)
+    deadline = time.monotonic() + 30.0
+    while started_here(command='itasc_bringup.recording.writer') and time.monotonic() < deadline:
+        time.sleep(0.1)
+    with AnyReader([mcap]) as reader:  # finished: summary and footer
+        log_times = [t for _, t, _ in reader.messages()]
+    assert len(log_times) > 1000
+    lost = killed_at - max(log_times) * 1e-9
+    assert lost < 1.5, f'the last {lost:.2f} s before the kill are lost'
+
+
+def test_a_recording_whose_writer_was_killed_too_is_made_readable_by_itasc_recover(tmp_path):
+    mcap = tmp_path / 'run.mcap'
+    killed_at = _killed_run(mcap, writer_too=True)
+    with pytest.raises(Exception):  # noqa: B017 - a cut-off MCAP fails with one of several errors
         with AnyReader([mcap]) as reader:
             list(reader.messages())
     with Spawned([*RECOVER, str(mcap), '-o', str(tmp_path / 'recovered.mcap')]) as recover:

@@ -20,7 +20,6 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import pytest
 from processes import Spawned
 from recordings import read_recording
 from ros_client import call, ros_node
@@ -118,9 +117,12 @@ def test_recover_is_refused_while_the_driver_is_silent_and_brings_the_robot_back
     root, mcap = '/approach_object_ros_driver', tmp_path / 'recovered.mcap'
     with Spawned(FAKE_ROS2_CONTROL) as driver, \
             Spawned([*BOOTSTRAP, 'approach_object_ros_driver', '--record', str(mcap)]) as app:
-        app.wait_for_line(f'[state] approach_object_ros_driver: Active.Run.Running', timeout=120)
+        app.wait_for_line('[state] approach_object_ros_driver: Active.Run.Running', timeout=120)
         assert_operator_services(composites_of('approach_object_ros_driver'))
         time.sleep(1.0)
+        before = app.forget_lines()  # the Safety awaited below must be the one the silence causes
+        assert not any(line.startswith('SAFETY') for line in before), \
+            'Safety before the driver fell silent (a watchdog saw a stall of this machine)\n' + app.output()
         driver.kill()  # the driver falls silent
         app.wait_for_line('SAFETY: approach_object_ros_driver entered Safety <- e_emergency from '
                           f'{root}/Driver_panda_silent', timeout=10)

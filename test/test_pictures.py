@@ -13,7 +13,7 @@ import pytest
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 101))  # conftest.py normally sets it
 
-from PIL import Image  # noqa: E402
+from PIL import Image
 
 JOINTS = [f'panda_joint{i}' for i in range(1, 8)]
 SAFETY_RED = (0xe3, 0x1a, 0x1c)     # plot.TOP_LEVEL_COLOURS['Safety']
@@ -145,8 +145,9 @@ def test_plot_writes_task_joint_and_lifecycle_pictures(run_mcap, tmp_path, capsy
     assert sorted(pathlib.Path(p).name for p in printed) == names
     # the overview page shows every picture, task meanings first
     page = (out / 'index.html').read_text()
-    assert [page.index(f'<img src="{name}"') for name in ('task_errors.png', 'joints_app_robot_joint_states.png',
-                                                          'lifecycle.png')] == sorted(page.index(f'<img src="{n}"') for n in names[1:])
+    first = ('task_errors.png', 'joints_app_robot_joint_states.png', 'lifecycle.png')
+    shown = [page.index(f'<img src="{name}"') for name in first]
+    assert shown == sorted(page.index(f'<img src="{n}"') for n in names[1:])
     names.remove('index.html')
     for name in names:
         path = out / name

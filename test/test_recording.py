@@ -14,10 +14,10 @@ from ros_client import spin_until
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 101))  # conftest.py normally sets it
 
-import rclpy  # noqa: E402
-from rclpy.duration import Duration  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 N_JOINT_STATES = 40
@@ -254,6 +254,71 @@ def test_a_port_written_as_soon_as_it_exists_is_recorded_from_its_first_sample(c
     assert [m.data.tolist() for t, _, m in messages if t == '/app/plant/state'] == [[1.0], [2.0]]
 
 
+def test_events_raised_before_the_recorder_matched_their_writer_are_recorded(context, tmp_path):
+    """A composite process raises its first events as soon as its parent sees it ready, which says
+    nothing about whether the recorder, in a third process, has matched its event writer yet
+    (flaky: a per-composite run recorded without a Coordinator's first three events). Modelled
+    here at its worst: the events are raised before the recorder exists."""
+    from ros_client import ros_node
+
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.events import EventRaiser
+    from itasc_core.communication.qos import EVENT_QOS
+
+    path = tmp_path / 'run.mcap'
+    with ros_node('coordinator') as (node, _):
+        raiser = EventRaiser(node, topic='/app/program/events')
+        sent = [raiser.raise_event(f'e_first_{i}').seq for i in range(3)]
+        recorder = Recorder(path, prefix='/app', context=context)
+        recorder.record('/app/program/events', 'itasc_msgs/msg/Event', qos=EVENT_QOS)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(recorder)
+        try:
+            spin_until(executor, lambda: recorder.counts['/app/program/events'] == 3, 5.0)
+        finally:
+            executor.shutdown()
+            recorder.destroy_node()
+    _, messages = _read_all(path)
+    assert [m.seq for t, _, m in messages if t == '/app/program/events'] == sent == [1, 2, 3]
+
+
+def test_a_volatile_event_writer_from_outside_is_recorded_and_ours_once(context, tmp_path):
+    """The recorder asks our event writers for their history, which a volatile writer (``ros2 topic
+    pub``, a hand-written node) cannot give: its events are recorded all the same, and each of ours
+    exactly once although a second reader of the recorder now takes them too."""
+    from itasc_msgs.msg import Event
+    from ros_client import ros_node
+
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.events import EventRaiser
+    from itasc_core.communication.qos import EVENT_QOS
+
+    topic = '/app/events'
+    path = tmp_path / 'run.mcap'
+    recorder = Recorder(path, prefix='/app', context=context, scan_period=0.05)
+    recorder.record(topic, 'itasc_msgs/msg/Event', qos=EVENT_QOS)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(recorder)
+    with ros_node('outside') as (node, node_executor):
+        ours = EventRaiser(node, topic=topic, source='/app/coordinator')
+        outside = node.create_publisher(Event, topic, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        try:
+            assert spin_until(executor, lambda: outside.get_subscription_count() >= 1, 5.0), \
+                'the recorder never matched the volatile writer'
+            for i in range(20):
+                ours.raise_event(f'e_ours_{i}')
+                outside.publish(Event(source='/outside', name=f'e_outside_{i}', seq=i + 1))
+                executor.spin_once(timeout_sec=0.0)
+            spin_until(executor, lambda: recorder.counts[topic] >= 40, 5.0)
+            executor.spin_once(timeout_sec=0.3)  # a copy of ours through the second reader would be written by now
+        finally:
+            executor.shutdown()
+            recorder.destroy_node()
+    _, messages = _read_all(path)
+    names = [m.name for t, _, m in messages if t == topic]
+    assert sorted(names) == sorted([f'e_ours_{i}' for i in range(20)] + [f'e_outside_{i}' for i in range(20)])
+
+
 def test_a_recorded_run_holds_every_data_flow_topic_from_the_first_tick(tmp_path):
     """bootstrap --record: for every data-flow topic of the model, the first recorded message is
     the one of the program's first tick."""
@@ -302,3 +367,41 @@ def test_a_recorded_run_holds_every_data_flow_topic_from_the_first_tick(tmp_path
         reference = (f'{group}/Scene/joint_state' if topic.split('/')[-2] == 'Scene'
                      else f'{group}/Rows/state')
         assert len(by_topic[topic]) == len(by_topic[reference]), (topic, reference)
+
+
+def test_a_local_output_is_recorded_every_sample_without_a_dds_reader(context, tmp_path):
+    """Recording off the control path (issue #9): an output in the recorder's process is tapped,
+    so its publisher has no DDS reader (a publish with one costs the tick a Fast DDS send), and
+    still every sample written is in the bag, decoded to what was written."""
+    import numpy as np
+
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.ports import OutputPort, PortSpec
+    from itasc_core.itasc.entities.messages import FeaturesSample
+    from itasc_msgs.msg import Features
+
+    node = rclpy.create_node('scene', context=context)
+    port = OutputPort(node, PortSpec(name='relation', direction='output', msg_type=Features, id='/app/relation'))
+    path = tmp_path / 'bag'
+    recorder = Recorder(path, prefix='/app', context=context)
+    recorder.record('/app/relation', 'itasc_msgs/msg/Features', qos=QoSProfile(depth=10))
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(recorder)
+    joints = ('j1', 'j2')
+    try:
+        for k in range(50):
+            port.write(FeaturesSample(k * 0.001, ('distance',), joints, np.array([0.1 * k]), np.array([[1.0, k]])))
+            recorder.drain()
+        assert port._dds.publisher.get_subscription_count() == 0
+        executor.spin_once(timeout_sec=0.1)  # nothing subscribes later either
+        assert port._dds.publisher.get_subscription_count() == 0
+    finally:
+        executor.shutdown()
+        recorder.destroy_node()
+        node.destroy_node()
+    _, messages = _read_all(path)
+    recorded = [m for t, _, m in messages if t == '/app/relation']
+    assert len(recorded) == 50
+    assert [m.value.tolist() for m in recorded] == [[0.1 * k] for k in range(50)]
+    assert recorded[7].jacobian.tolist() == [1.0, 7.0] and list(recorded[7].joint_names) == list(joints)
+    assert (recorded[7].stamp.sec, recorded[7].stamp.nanosec, recorded[7].rotation) == (0, 7_000_000, -1)

@@ -1,13 +1,16 @@
 """Faults at run time, measured (issue #8): a composite process killed with SIGKILL is detected by
-its parent within 100 ms and the robot is held; an event storm across one composite for 10 s loses
-nothing, keeps each source's order and does not grow memory.
+its parent within 100 ms and the robot is held; an event storm across one composite (10,000
+events/s for 10 s by default, ``ITASC_STORM_RATE`` to change it) loses nothing, keeps each source's
+order and grows the bootstrap's memory by a bounded amount (test/support/storm.py).
 
-The storm's rate: issue #8 asks for 10,000 events/s. The bootstrap process reads the topic once for
-all its entities (its event hub) and once for the recorder, and its socket buffers hold bursts
-(itasc_core.communication.dds); on a 2-core machine it still saturates at 10,000/s, where a Python
-publisher (~50 µs an event), the recorder and the hub's dispatch (~40 µs) and pattern_demo's 1 kHz
-loop share the two cores: the kernel drops datagrams and the Coordinators report lost events. 5,000/s
-holds. The test runs at ``ITASC_STORM_RATE`` (default 5,000/s) and checks the publisher kept it."""
+What makes the storm lossless is buffering, not speed (itasc_core.communication.qos, .dds): the
+event readers hold a whole storm's backlog, the writers keep every event until acknowledged, and
+they send heartbeats every 0.1 s so that a datagram the kernel dropped is asked for again at once.
+On a loaded 2-core machine the bootstrap falls behind and catches up after the storm; and the test
+process itself may not get the CPU to raise 10,000 events/s (about 50 µs each). The test then
+reports a skip with its figures, nothing lost, when its raising thread spent more than a fifth of
+the time waiting for a CPU; a storm raised slowly without such waiting fails.
+``bench/bench_storm.py`` prints the same figures."""
 
 from __future__ import annotations
 
@@ -15,14 +18,16 @@ import os
 import signal
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
+import pytest
 from processes import Spawned, started_here
-from ros_client import ros_node
 from recordings import read_recording
+from storm import storm
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+#: events per second of the storm test (``ITASC_STORM_RATE`` overrides it)
+STORM_RATE = 10_000
 
 
 def seconds(stamp) -> float:
@@ -58,49 +63,19 @@ def test_a_killed_composite_process_is_detected_within_100_ms_and_the_robot_held
     assert all(np.array_equal(m.position, held[0].position) for m in held)
 
 
-def _rss_kb(pid: int) -> int:
-    with open(f'/proc/{pid}/status') as status:
-        return next(int(line.split()[1]) for line in status if line.startswith('VmRSS:'))
-
-
 def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
-    from itasc_core.communication.events import EventRaiser
-
-    mcap = tmp_path / 'storm.mcap'
-    rate, seconds_, sources = int(os.environ.get("ITASC_STORM_RATE", 5_000)), 10.0, 2
-    with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
-        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
-        with ros_node('storm') as (node, executor):
-            raisers = [EventRaiser(node, topic='/app/program/events', source=f'/storm/source{i}')
-                       for i in range(sources)]
-            def matched() -> bool:  # every reader of the topic (Coordinator, ..., recorder) matched
-                readers = node.count_subscribers('/app/program/events')
-                return readers >= 2 and all(r.publisher.get_subscription_count() == readers for r in raisers)
-
-            deadline = time.monotonic() + 10
-            while not matched() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
-            assert matched(), 'the composite\'s event readers did not all match the storm\'s publishers'
-            rss_before = _rss_kb(app.process.pid)
-            start, sent, rss_peak = time.monotonic(), 0, rss_before
-            total = int(rate * seconds_)
-            while sent < total:
-                due = min(total, int((time.monotonic() - start) * rate) + 1)
-                while sent < due:
-                    raisers[sent % sources].raise_event('e_storm', detail=str(sent))
-                    sent += 1
-                rss_peak = max(rss_peak, _rss_kb(app.process.pid))
-                time.sleep(0.002)
-            elapsed = time.monotonic() - start
-        time.sleep(1.0)
-        os.killpg(app.process.pid, signal.SIGINT)
-        assert app.finish(timeout=120) == 0, app.output()
-    assert elapsed < seconds_ * 1.2, f'could only send {total} events in {elapsed:.1f} s'
-    assert 'lost events' not in app.err, app.err[-2000:]
-    events = [m for m in read_recording(mcap, '/app/program/events')['/app/program/events'] if m.name == 'e_storm']
-    assert len(events) == total, f'{total - len(events)} of {total} events lost'
-    for i in range(sources):
-        seqs = [m.seq for m in events if m.source == f'/storm/source{i}']
-        assert seqs == list(range(1, len(seqs) + 1)), f'source {i}: order not kept'
-    growth_mb = (rss_peak - rss_before) / 1024
-    assert growth_mb < 200, f'the bootstrap grew by {growth_mb:.0f} MB during the storm'
+    rate = int(os.environ.get('ITASC_STORM_RATE', STORM_RATE))
+    figures = storm(tmp_path / 'storm.mcap', rate=rate, seconds=10.0)
+    print(figures.summary())
+    assert figures.exit_code == 0, figures.output
+    assert figures.acked, f'not every event reached the readers {figures.acked_after:.0f} s after the storm'
+    assert not figures.gaps, figures.gaps[:5]
+    assert figures.lost == 0, figures.summary()
+    assert figures.order_kept, figures.summary()
+    # bounded by the event readers' depth (EVENT_LISTENER_QOS, EVENT_QOS), not by the storm's length
+    assert figures.rss_peak_mb - figures.rss_before_mb < 200, figures.summary()
+    if figures.send_seconds >= 10.0 * 1.2 and figures.cpu_wait_seconds > 0.2 * figures.send_seconds:
+        # the machine, not the application, was too slow: this process could not raise the storm
+        pytest.skip(f'the storm could not be raised at {rate}/s on this machine now (nothing was lost, '
+                    f'but the rate was not reached): {figures.summary()}')
+    assert figures.send_seconds < 10.0 * 1.2, f'the storm could not be raised at {rate}/s: {figures.summary()}'

@@ -23,6 +23,9 @@ at the end (``--summary-json FILE`` for scripts).
 from __future__ import annotations
 
 import argparse
+import contextlib
+import faulthandler
+import io
 import pathlib
 import signal
 import sys
@@ -58,7 +61,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                '  recovered (~/recover) and stopped in order from Running\n\n'
                'shell completion: eval "$(register-python-argcomplete bootstrap)"')
     app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
-    app.completer = _app_completer(apps)
+    app.completer = _app_completer(apps)  # type: ignore[attr-defined]  # argcomplete reads it
     parser.add_argument('--duration', type=float, default=None,
                         help='stop SECONDS after the root reached Running (a failure before Running stops at once)')
     parser.add_argument('--record', metavar='DIR|FILE.mcap', default=None,
@@ -104,6 +107,8 @@ def load(app: str, rate: float | None):
 
 
 def main(argv: list[str] | None = None) -> int:
+    with contextlib.suppress(io.UnsupportedOperation):  # stderr without a file (main() called in a test)
+        faulthandler.register(signal.SIGUSR1, all_threads=True)  # `kill -USR1 <pid>`: where is it stuck?
     args = parse_args(argv)
     model = load(args.app, args.rate)
 
@@ -116,6 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from itasc_core.communication.event_names import CONFIGURE, STOP, event
     from itasc_core.communication.events import EventRaiser
     from itasc_core.composition.composer import bring_up
     from itasc_core.composition.deployment import Runtime, make_executor, end_process_within
@@ -129,10 +135,11 @@ def main(argv: list[str] | None = None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stop_requested.append('signal ' + signal.Signals(signum).name))
 
+    started = time.monotonic()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
     root = CompositeContext(name=model.name, namespace=f'/{model.name}')
-    runtime = Runtime(executor=executor, mode=args.deploy, namespace=root.namespace)
+    runtime = Runtime(executor=executor, mode=args.deploy, namespace=root.namespace, background=True)
     node = rclpy.create_node('bootstrap', namespace=root.namespace)
     executor.add_node(node)
     recorder = None
@@ -164,7 +171,8 @@ def main(argv: list[str] | None = None) -> int:
                                 target_rate=model.rate or 0.0,
                                 rate=lambda: (composer.timer.achieved_rate() if composer and composer.timer else 0.0)
                                 or facts.achieved_rate(),
-                                elapsed=lambda: None if running_since is None else ran_for or time.monotonic() - running_since)
+                                elapsed=lambda: None if running_since is None
+                                else ran_for or time.monotonic() - running_since)
 
         def on_transition(transition) -> None:
             outcome.saw_state(transition.composite, transition.state)
@@ -183,13 +191,15 @@ def main(argv: list[str] | None = None) -> int:
 
         while raiser.publisher.get_subscription_count() < 1 and not stop_requested:
             executor.spin_once(timeout_sec=0.01)  # the root's entities listen (this process's reader)
-        raiser.raise_event(f'e_{root.name}_configure')
+        raiser.raise_event(event(root.name, CONFIGURE))
 
         stop_sent_at = last_stop = None
         code = None
         failed_start = False
         while True:
             executor.spin_once(timeout_sec=0.02)
+            if recorder is not None:
+                recorder.drain()  # the samples of the tick that just ran: CDR bytes, to the writer
             if outcome.stop_request is not None and not stop_requested:  # an operator's ~/stop
                 stop_requested.append(f'~/stop: {outcome.stop_request}')
             runtime.reap()
@@ -207,13 +217,14 @@ def main(argv: list[str] | None = None) -> int:
             failed_start = failed_start or outcome.went_through_safety and (
                 running_since is None or min(outcome.in_safety.values()) <= running_since)
             if stop_sent_at is None and (stop_requested or due or failed_start):
-                raiser.raise_event(f'e_{root.name}_stop')
+                raiser.raise_event(event(root.name, STOP))
                 stop_sent_at = last_stop = time.monotonic()
-                ran_for = time.monotonic() - running_since if running_since is not None else None
-            elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - last_stop > 0.5:
+                since = running_since  # a local: the console's lambdas read running_since too
+                ran_for = time.monotonic() - since if since is not None else None
+            elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - (last_stop or 0.0) > 0.5:
                 # a fault during the Stop put the root in Safety: the stop still stands (Safety ->
                 # Stop), or the hierarchy would wait in Safety for a command already given
-                raiser.raise_event(f'e_{root.name}_stop')
+                raiser.raise_event(event(root.name, STOP))
                 last_stop = time.monotonic()
             if state.endswith('NotifyStopped'):
                 _await_final_states(executor, facts=facts, outcome=outcome, recorder=recorder,
@@ -236,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
         code = outcome.exit_code(reached_running=not failed_start) if code is None else code
         _finish(console, args, facts=facts, app=root.name, how=how, exit_code=code, trace=trace,
                 safety=outcome.safety_line() if outcome.went_through_safety else None,
-                running_for=ran_for,
+                running_for=ran_for, up_after=None if running_since is None else running_since - started,
                 target_rate=model.rate or 0.0, recording=args.record if recorder is not None else None,
                 warnings=warnings)
         return code
@@ -248,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         stopped = composer is not None and composer.coordinator.state.endswith('NotifyStopped')
         runtime.shutdown(orderly=stopped)  # the composite processes, each under its own deadline
         end_process_within()
-        runtime.reap()
+        runtime.reap(wait=True)
         if composer is not None:
             for entity in (composer.coordinator, composer.configurator, composer):
                 executor.remove_node(entity)

@@ -24,7 +24,7 @@ from typing import Iterable
 
 from rclpy.node import Node
 
-from itasc_core.communication.event_names import SAFETY_EVENT
+from itasc_core.communication.event_names import CONNECTION_REFUSED, SAFETY_EVENT, STOP_REQUESTED, STOPPED, owner_of
 from itasc_core.communication.events import EventListener, events_topic
 
 __all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY', 'EXIT_RECOVERED']
@@ -34,8 +34,6 @@ EXIT_ERROR = 1
 EXIT_NOT_STARTED = 2
 EXIT_SAFETY = 3
 EXIT_RECOVERED = 4
-#: Raised by a Coordinator whose ``~/stop`` was called (``itasc_core.coordination.operator``).
-STOP_REQUESTED = 'e_stop_requested'
 
 
 @dataclass(frozen=True)
@@ -54,7 +52,7 @@ class Fault:
 
 
 def _is_fault(name: str) -> bool:
-    return name == SAFETY_EVENT or name.endswith(('_failed', '_refused', '_timeout'))
+    return name == SAFETY_EVENT or name.endswith(('_failed', f'_{CONNECTION_REFUSED}', '_timeout'))
 
 
 class RunOutcome:
@@ -87,8 +85,8 @@ class RunOutcome:
             self.stop_request = msg.detail or msg.source
         elif _is_fault(msg.name):
             self.faults.append(Fault(composite, msg.name, msg.source, msg.detail, time.monotonic()))
-        elif msg.name.endswith('_stopped') and msg.source.endswith('/composer'):
-            child = msg.name.removeprefix('e_').removesuffix('_stopped')
+        elif owner_of(msg.name, STOPPED) is not None and msg.source.endswith('/composer'):
+            child = owner_of(msg.name, STOPPED)
             if child in self._names:
                 self.stopped_on_behalf.add(child)
 
@@ -119,7 +117,7 @@ class RunOutcome:
         first fault."""
         faults = self.faults[self._episode_from:] or self.faults
         with_detail = [f for f in faults if f.detail]
-        return (with_detail or faults or [None])[0]
+        return (with_detail or faults or [None])[0]  # type: ignore[list-item]  # None: no fault
 
     def safety_line(self) -> str:
         first = self._first_now or '?'

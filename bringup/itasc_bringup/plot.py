@@ -87,14 +87,14 @@ def urdf_limits(path: pathlib.Path) -> dict[str, tuple[float, float, float]]:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as err:
         raise PlotError(f'cannot read URDF {path}: {err}') from None
-    limits = {}
+    limits: dict[str, tuple[float, float, float]] = {}
     for joint in root.iter('joint'):
         limit = joint.find('limit')
         if limit is None or joint.get('type') == 'fixed':
             continue
         continuous = joint.get('type') == 'continuous'
-        get = lambda key: float(limit.get(key, 'nan'))  # noqa: E731
-        limits[joint.get('name')] = (math.nan if continuous else get('lower'),
+        get = lambda key, limit=limit: float(limit.get(key, 'nan'))  # noqa: E731
+        limits[joint.get('name', '')] = (math.nan if continuous else get('lower'),
                                      math.nan if continuous else get('upper'), get('velocity'))
     return limits
 
@@ -244,7 +244,7 @@ def plot_lifecycle(series: dict, types: dict, duration: float,
     end = max(duration, max(series[t][-1][0] for t in lanes)) or 1.0
     ax.set_xlim(0, end * 1.01)
     ax.set_ylim(len(lanes) - 0.6, -0.95)   # inverted: first lane on top, room for event names
-    renderer = fig.canvas.get_renderer()
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas has it
     labels = []
     for lane, topic in enumerate(lanes):
         items = series[topic]
@@ -297,11 +297,11 @@ def plot_run(path: pathlib.Path, out: pathlib.Path,
     from .visualization.picture import render_scene  # the 3-D scene, when the run recorded TF and markers
     scene = render_scene(path, out)
     written += [d.path for d in scene] + ([out / 'scene.gif'] if scene else [])
-    written = [p for p in written if p is not None]
-    if written:
+    done = [p for p in written if p is not None]
+    if done:
         from .overview import write_overview
-        written.append(write_overview(path, written, out))
-    return written
+        done.append(write_overview(path, done, out))
+    return done
 
 
 def main(argv: Sequence[str] | None = None) -> int:

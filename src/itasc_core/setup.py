@@ -16,8 +16,20 @@ setup(
     zip_safe=False,
     maintainer='iTaSC-ROS2 maintainers',
     maintainer_email='itasc-ros2@example.com',
-    description='Composition Pattern runtime of iTaSC-ROS2 (entities, events, life-cycle FSM, composer, configurator, scheduler, monitors, ports) and the constraint-based program entities (Robot, Object, Scene, Solver).',
+    description=('Composition Pattern runtime of iTaSC-ROS2 (entities, events, life-cycle FSM, composer, configurator,'
+                 ' scheduler, monitors, ports) and the constraint-based program entities (Robot, Object, Scene, '
+                 'Solver).'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
-    entry_points={'console_scripts': []},
+    entry_points={
+        'console_scripts': [],
+        'itasc.conditions': [
+            'above = itasc_core.computation.conditions.builtin:Above',
+            'below = itasc_core.computation.conditions.builtin:Below',
+            'outside = itasc_core.computation.conditions.builtin:Outside',
+            'stale = itasc_core.computation.conditions.builtin:Stale',
+            'nonfinite = itasc_core.computation.conditions.builtin:NonFinite',
+            'inside = itasc_core.computation.conditions.inside:Inside',
+        ],
+    },
 )

@@ -14,7 +14,8 @@ setup(
     zip_safe=False,
     maintainer='iTaSC-ROS2 maintainers',
     maintainer_email='itasc-ros2@example.com',
-    description='Drivers and Sensors of iTaSC-ROS2: simulated robot, adapters to existing ROS 2 drivers (ros2_control, JointTrajectory), pose sensors.',
+    description=('Drivers and Sensors of iTaSC-ROS2: simulated robot, adapters to existing ROS 2 drivers '
+                 '(ros2_control, JointTrajectory), pose sensors.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

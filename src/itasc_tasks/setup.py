@@ -14,8 +14,17 @@ setup(
     zip_safe=False,
     maintainer='iTaSC-ROS2 maintainers',
     maintainer_email='itasc-ros2@example.com',
-    description='Task composites of iTaSC-ROS2: virtual kinematic chains, constraint outputs, constraint controllers, setpoint generators.',
+    description=('Task composites of iTaSC-ROS2: virtual kinematic chains, constraint outputs, constraint controllers,'
+                 ' setpoint generators.'),
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
-    entry_points={'console_scripts': []},
+    entry_points={
+        'console_scripts': [],
+        'itasc.task_types': [
+            'cartesian = itasc_tasks.task_types.cartesian:Cartesian',
+            'distance = itasc_tasks.task_types.distance:Distance',
+            'joint = itasc_tasks.task_types.joint:Joint',
+            'point_plane = itasc_tasks.task_types.point_plane:PointPlane',
+        ],
+    },
 )

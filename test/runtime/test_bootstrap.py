@@ -125,3 +125,16 @@ def test_wrong_dds_settings_exit_2_without_traceback():
                             timeout=60, env=env)
     assert result.returncode == 2, result.stdout[-2000:] + result.stderr[-2000:]
     assert 'ITASC_DDS_PEERS' in result.stderr and 'Traceback' not in result.stderr
+
+
+def test_a_stuck_bootstrap_tells_where_it_is_stuck_and_runs_on():
+    """A test that waits in vain for a line gets the Python stacks of the bootstrap's threads
+    (``kill -USR1``), and the bootstrap runs on: it can still be stopped in order."""
+    with Spawned([*BOOTSTRAP, 'pattern_demo']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        with pytest.raises(AssertionError) as waited:
+            app.wait_for_line('a line the bootstrap never prints', timeout=0.5)
+        assert 'most recent call first' in waited.value.args[0], waited.value.args[0]
+        assert re.search(r'File ".*bootstrap\.py", line \d+ in main', waited.value.args[0]), waited.value.args[0]
+        app.send_signal(signal.SIGINT)
+        assert app.finish(timeout=60) == 0, app.output()

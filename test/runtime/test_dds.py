@@ -60,3 +60,17 @@ def test_a_process_whose_teardown_hangs_still_ends():
         took = time.monotonic() - started
     assert code == 1 and took < 10, (code, took)
     assert process.err.startswith('Timeout (0:00:01)!'), process.err  # with every thread's stack
+
+
+def test_two_test_processes_at_once_never_share_a_domain():
+    """Another test process on this machine (a second checkout's suite, an xdist worker) takes a
+    domain this one does not hold, even one whose pid would pick the same domain as ours."""
+    import subprocess
+    from pathlib import Path
+    suite = Path(__file__).resolve().parents[1]
+    probe = ('import os, sys; os.getpid = lambda: int(sys.argv[2]); sys.path.insert(0, sys.argv[1]); '
+             'import conftest; print(os.environ["ROS_DOMAIN_ID"])')
+    env = {k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'}
+    other = subprocess.run([sys.executable, '-c', probe, str(suite), str(os.getpid())], capture_output=True,
+                           text=True, env=env, timeout=60, check=True)
+    assert int(other.stdout.split()[-1]) != int(os.environ['ROS_DOMAIN_ID'])

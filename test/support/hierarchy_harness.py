@@ -9,6 +9,7 @@ from typing import Callable
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
+from itasc_core.communication.event_names import CONFIGURE, event
 from itasc_core.communication.events import EventListener, EventRaiser
 from itasc_core.composition.composer import Composer, bring_up
 from itasc_core.composition.deployment import Runtime, make_executor
@@ -79,7 +80,7 @@ class Hierarchy:
 
     def start(self) -> None:
         self.spin_until(lambda: False, timeout=0.05)
-        self.raise_event(f'e_{self.root.name}_configure')
+        self.raise_event(event(self.root.name, CONFIGURE))
 
     def close(self) -> None:
         self.runtime.reap()

@@ -1,7 +1,8 @@
 """Processes started by tests: time-bounded reads, and nothing left running afterwards.
 
 A test that waits for a line a process never prints must fail with what the process did print,
-not hang; and a process a test started (with the composite processes it started in turn) must be
+and where it is stuck (the Python stacks of its threads, for a process of ours that dumps them on
+SIGUSR1), not hang; and a process a test started (with the composite processes it started in turn) must be
 gone when the test ends, whatever the test's outcome. A leftover holding the test run's output
 pipe would otherwise keep CI waiting long after pytest finished.
 """
@@ -44,6 +45,16 @@ def started_here(*, command: str = '') -> dict[int, str]:
     return found
 
 
+def _catches(pid: int, signum: int) -> bool:
+    """Whether process ``pid`` has a handler for ``signum`` (``SigCgt`` of ``/proc/<pid>/status``)."""
+    try:
+        with open(f'/proc/{pid}/status') as status:
+            caught = next(int(line.split()[1], 16) for line in status if line.startswith('SigCgt:'))
+    except (OSError, StopIteration):
+        return False
+    return bool(caught >> (signum - 1) & 1)
+
+
 class Spawned:
     """A process in its own process group, its stdout and stderr collected line by line.
 
@@ -56,8 +67,9 @@ class Spawned:
         self.stdout: list[str] = []
         self.stderr: list[str] = []
         self._lines: queue.Queue[str | None] = queue.Queue()
-        self._readers = [threading.Thread(target=self._read, args=(self.process.stdout, self.stdout, True), daemon=True),
-                         threading.Thread(target=self._read, args=(self.process.stderr, self.stderr, False), daemon=True)]
+        self._readers = [
+            threading.Thread(target=self._read, args=(self.process.stdout, self.stdout, True), daemon=True),
+            threading.Thread(target=self._read, args=(self.process.stderr, self.stderr, False), daemon=True)]
         for reader in self._readers:
             reader.start()
 
@@ -70,7 +82,8 @@ class Spawned:
             self._lines.put(None)
 
     def wait_for_line(self, prefix: str, *, timeout: float) -> str:
-        """The first stdout line from now on that starts with ``prefix``; fails after ``timeout`` s."""
+        """The first stdout line not yet waited for that starts with ``prefix`` (lines printed
+        before this call count, unless :meth:`forget_lines` dropped them); fails after ``timeout`` s."""
         deadline = time.monotonic() + timeout
         while (left := deadline - time.monotonic()) > 0:
             try:
@@ -82,7 +95,22 @@ class Spawned:
                                      + self.output())
             if line.startswith(prefix):
                 return line
+        self.dump_stacks()
         raise AssertionError(f'no line {prefix!r} within {timeout} s\n' + self.output())
+
+    def forget_lines(self) -> list[str]:
+        """Drop the stdout lines printed so far from what :meth:`wait_for_line` looks at (they stay
+        in :attr:`stdout`), so that the next wait sees only what comes after this call; returns them."""
+        dropped = []
+        while True:
+            try:
+                line = self._lines.get_nowait()
+            except queue.Empty:
+                return dropped
+            if line is None:  # the end of the output: keep it for the next wait
+                self._lines.put(None)
+                return dropped
+            dropped.append(line)
 
     def send_signal(self, signum: int) -> None:
         self.process.send_signal(signum)
@@ -92,10 +120,25 @@ class Spawned:
         try:
             code = self.process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
+            self.dump_stacks()
             raise AssertionError(f'process still running after {timeout} s\n' + self.output()) from None
         for reader in self._readers:
             reader.join(timeout=10)
         return code
+
+    def dump_stacks(self, *, wait: float = 2.0) -> None:
+        """Have a stuck process write the stacks of its threads to its stderr (``faulthandler`` on
+        SIGUSR1, which the bootstrap and the composite processes register), and wait for them. A
+        process that does not catch SIGUSR1 is left alone: the signal would end it."""
+        if self.process.poll() is not None or not _catches(self.process.pid, signal.SIGUSR1):
+            return
+        before = len(self.stderr)
+        self.send_signal(signal.SIGUSR1)
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline and not any('most recent call first' in line
+                                                      for line in self.stderr[before:]):
+            time.sleep(0.05)
+        time.sleep(0.2)  # the rest of the dump
 
     @property
     def out(self) -> str:
@@ -105,7 +148,7 @@ class Spawned:
     def err(self) -> str:
         return ''.join(self.stderr)
 
-    def output(self, *, tail: int = 4000) -> str:
+    def output(self, *, tail: int = 8000) -> str:
         return f'--- stdout (tail)\n{self.out[-tail:]}\n--- stderr (tail)\n{self.err[-tail:]}'
 
     def kill(self) -> None:

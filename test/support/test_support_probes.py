@@ -3,10 +3,9 @@ can raise events on request. Importing this module registers them (kind ``test_s
 
 from __future__ import annotations
 
-from typing import Any
-
 from itasc_core.composition.registry import register_kind
 from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.computation.parameters import ParameterModel
 
 #: (tick time, entity fully qualified name), appended by every OrderProbe.update.
 CALLS: list[tuple[float, str]] = []
@@ -15,10 +14,14 @@ CALLS: list[tuple[float, str]] = []
 class OrderProbe(FunctionalEntity):
     """Records every call of update; raises ``raise_on_tick`` (priority) on tick ``at_tick``."""
 
-    PARAMETERS = {'raise_on_tick': '', 'at_tick': 0}
+    class Parameters(ParameterModel):
+        raise_on_tick: str = ''
+        """The event raised at tick ``at_tick`` ('': none)."""
+        at_tick: int = 0
+        """The tick (counted from 1) that raises ``raise_on_tick``."""
 
-    def configure(self, params: dict[str, Any]) -> None:
-        self.raise_name, self.at_tick = params['raise_on_tick'], params['at_tick']
+    def configure(self, params: Parameters) -> None:
+        self.raise_name, self.at_tick = params.raise_on_tick, params.at_tick
         self.ticks = 0
         self.activations = 0
 

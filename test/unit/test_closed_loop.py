@@ -51,12 +51,12 @@ def test_cartesian_task_reaches_random_targets(panda, solver):
         panda.update()
         target = panda.frame_pose('ee')
         panda.set_position_vector(start)
-        tasks = [TaskComputation('hand', vkc=CartesianVKC('world', 'panda/ee'),
+        tasks = [TaskComputation('hand', vkc=CartesianVKC(), o1='world', o2='panda/ee',
                                  controller=PController(kp=4.0, max_output=1.0),
                                  setpoint=FixedSetpoint(target)),
-                 TaskComputation('posture', vkc=JointVKC(), controller=PController(kp=1.0),
+                 TaskComputation('posture', vkc=JointVKC(scene.joint_names), controller=PController(kp=1.0),
                                  setpoint=FixedSetpoint(mid), priority=1, weights=0.01)]
-        _run(scene, tasks, solver, 10.0, until=lambda: max(_pose_error(
+        _run(scene, tasks, solver, 10.0, until=lambda target=target: max(_pose_error(
             scene.pose('panda/ee'), target)) < 1e-4)
         position, orientation = _pose_error(scene.pose('panda/ee'), target)
         assert position < 1e-3 and orientation < 0.01
@@ -75,13 +75,13 @@ def test_inequality_keeps_distance_while_pulled_through_obstacle(panda, solver):
     scene = Scene(robots=[panda], objects=[obstacle])
 
     def tasks(avoid: bool):
-        pull = TaskComputation('pull', vkc=CartesianVKC('world', 'panda/ee'),
+        pull = TaskComputation('pull', vkc=CartesianVKC(), o1='world', o2='panda/ee',
                                output=ConstraintOutput(['x', 'y', 'z']), priority=1,
                                controller=PController(kp=2.0, max_output=0.3),
                                setpoint=FixedSetpoint(goal))
-        posture = TaskComputation('posture', vkc=JointVKC(), priority=2,
+        posture = TaskComputation('posture', vkc=JointVKC(scene.joint_names), priority=2,
                                   controller=PController(kp=1.0), setpoint=FixedSetpoint(READY))
-        keep_away = TaskComputation('avoid', vkc=DistanceVKC('obstacle', 'panda/ee'),
+        keep_away = TaskComputation('avoid', vkc=DistanceVKC(), o1='obstacle', o2='panda/ee',
                                     controller=PController(kp=5.0), lower=d_min)
         return [keep_away, pull, posture] if avoid else [pull, posture]
 
@@ -89,7 +89,7 @@ def test_inequality_keeps_distance_while_pulled_through_obstacle(panda, solver):
     for avoid in (False, True):
         panda.set_position_vector(READY)
         distances = []
-        _run(scene, tasks(avoid), solver, 8.0, until=lambda: distances.append(
+        _run(scene, tasks(avoid), solver, 8.0, until=lambda distances=distances: distances.append(
             np.linalg.norm(scene.pose('panda/ee').translation - obstacle.frame_pose().translation)))
         closest.append(min(distances))
     assert closest[0] < d_min / 4  # without the inequality the pull goes through it
@@ -110,9 +110,9 @@ def test_relative_task_between_two_arms():
     scene.set_position_vector(np.r_[READY, READY])
     scene.update()
     assert _pose_error(scene.relative_pose('left/ee', 'right/ee'), target)[0] > 0.1
-    task = TaskComputation('handover', vkc=CartesianVKC('left/ee', 'right/ee'),
+    task = TaskComputation('handover', vkc=CartesianVKC(), o1='left/ee', o2='right/ee',
                            controller=PController(kp=3.0), setpoint=FixedSetpoint(target))
-    posture = TaskComputation('posture', vkc=JointVKC(), priority=1, weights=0.01,
+    posture = TaskComputation('posture', vkc=JointVKC(scene.joint_names), priority=1, weights=0.01,
                               setpoint=FixedSetpoint(np.r_[READY, READY]))
     _run(scene, [task, posture], QpSolver(), 6.0)
     position, orientation = _pose_error(scene.relative_pose('left/ee', 'right/ee'), target)
@@ -135,9 +135,9 @@ def test_relative_task_arm_and_mobile_manipulator():
     scene.update()
     target = scene.relative_pose('arm/ee', 'mm/ee')
     scene.set_position_vector(home)
-    task = TaskComputation('meet', vkc=CartesianVKC('arm/ee', 'mm/ee'),
+    task = TaskComputation('meet', vkc=CartesianVKC(), o1='arm/ee', o2='mm/ee',
                            controller=PController(kp=3.0), setpoint=FixedSetpoint(target))
-    posture = TaskComputation('posture', vkc=JointVKC(), priority=1, weights=0.01,
+    posture = TaskComputation('posture', vkc=JointVKC(scene.joint_names), priority=1, weights=0.01,
                               setpoint=FixedSetpoint(home))
     _run(scene, [task, posture], QpSolver(), 8.0)
     position, orientation = _pose_error(scene.relative_pose('arm/ee', 'mm/ee'), target)

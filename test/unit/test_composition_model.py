@@ -9,7 +9,8 @@ import pytest
 from itasc_core.communication.ports import PortSpec, SemanticMismatch, check_connection
 from itasc_core.composition.loader import ModelError, load_model
 from itasc_core.composition.model import CompositeModel
-from itasc_core.computation.monitor import Condition, read_field
+from itasc_core.computation.conditions import CONDITIONS
+from itasc_core.computation.monitor import read_field
 from std_msgs.msg import Float64MultiArray
 
 
@@ -70,13 +71,23 @@ def test_semantic_check_names_both_ports():
                      source_name='a', target_name='b')
 
 
+def condition(name: str, **parameters):
+    """A registered condition with its parameters (as a Monitor builds it)."""
+    kind = CONDITIONS[name]
+    return kind(kind.Parameters(**parameters))
+
+
 def test_monitor_conditions():
-    assert Condition('above', threshold=1.0).holds([0.5, 1.5], age=0)
-    assert not Condition('below', threshold=0.0).holds([0.5], age=0)
-    assert Condition('outside', low=-1, high=1).holds([2.0], age=0)
-    assert Condition('nonfinite').holds([math.nan], age=0)
-    assert Condition('stale', timeout=0.1).holds(None, age=0.2)
-    assert not Condition('stale', timeout=0.1, grace=5.0).holds(None, age=0.2, seen=False)  # still coming up
-    assert Condition('stale', timeout=0.1, grace=5.0).holds(None, age=0.2, seen=True)  # went silent
+    assert condition('above', threshold=1.0).holds([0.5, 1.5], age=0)
+    assert not condition('below', threshold=0.0).holds([0.5], age=0)
+    assert condition('outside', band=(-1, 1)).holds([2.0], age=0)
+    assert condition('inside', band=(-1, 1)).holds([0.5, -1.0], age=0)  # the counterpart of outside
+    assert not condition('inside', band=(-1, 1)).holds([0.5, 2.0], age=0)
+    assert not condition('inside', band=(-1, 1)).holds([], age=0)
+    assert not condition('inside', band=(0, 1)).holds(None, age=0)
+    assert condition('nonfinite').holds([math.nan], age=0)
+    assert condition('stale', timeout=0.1).holds(None, age=0.2)
+    assert not condition('stale', timeout=0.1, grace=5.0).holds(None, age=0.2, seen=False)  # still coming up
+    assert condition('stale', timeout=0.1, grace=5.0).holds(None, age=0.2, seen=True)  # went silent
     msg = Float64MultiArray(data=[1.0, 2.0])
     assert read_field(msg, 'data[1]') == [2.0] and read_field(msg, 'data') == [1.0, 2.0]

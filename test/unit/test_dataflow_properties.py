@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-import yaml
 from geometry_msgs.msg import PoseStamped
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -66,10 +65,6 @@ def ros():
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     yield
     rclpy.try_shutdown()
-
-
-def flow(value: dict) -> str:
-    return yaml.safe_dump(value, default_flow_style=True, width=math.inf).strip()
 
 
 @dataclass
@@ -114,12 +109,12 @@ class Program:
         self.robot = e(RobotEntity, 'Robot_panda', robot='panda', urdf=URDF)
         self.sensor = e(PoseSensor, 'Sensor_target', object='target', topic=f'{ns}/target_pose')
         self.scene = e(SceneEntity, 'Scene',
-                       robots=[flow({'name': 'panda', 'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}})],
-                       objects=[flow({'name': 'target', 'xyz': list(TARGET), 'sensed': True,
-                                      'frames': {'grasp': {'xyz': [0, 0, 0.05], 'rpy': [math.pi, 0, 0]}}}),
-                                flow({'name': 'obstacle', 'xyz': [0.45, -0.05, 0.5]})],
-                       relations=[flow({'name': 'Approach', 'o1': 'target/grasp', 'o2': 'panda/tcp'}),
-                                  flow({'name': 'Avoid', 'o1': 'obstacle', 'o2': 'panda/panda_hand'})])
+                       robots={'panda': {'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}}},
+                       objects={'target': {'xyz': list(TARGET), 'sensed': True,
+                                           'frames': {'grasp': {'xyz': [0, 0, 0.05], 'rpy': [math.pi, 0, 0]}}},
+                                'obstacle': {'xyz': [0.45, -0.05, 0.5]}},
+                       relations={'Approach': {'o1': 'target/grasp', 'o2': 'panda/tcp'},
+                                  'Avoid': {'o1': 'obstacle', 'o2': 'panda/panda_hand'}})
         approach = [e(VKCEntity, 'A_VKC', task='Approach', type='cartesian', o1='target/grasp', o2='panda/tcp'),
                     e(ConstraintOutputEntity, 'A_CO', task='Approach'),
                     e(SetpointGeneratorEntity, 'A_SPG', task='Approach', kind='topic', topic=f'{ns}/setpoint'),
@@ -422,7 +417,7 @@ def test_a_setpoint_from_a_topic_that_is_not_finite_or_not_one_per_output_puts_t
     """Found by the property: with a P controller an infinite setpoint was saturated into a motion
     at full speed, without e_emergency; a short one failed deep inside the table encoding."""
     program = Program('qp', 'p')
-    topic = program.spg.params['topic']
+    topic = program.spg.params.topic
     outcomes = _run_each(program, {'infinite x': [Step(None, None, [math.inf] + [0.0] * 5)],
                                    'three values': [Step(None, None, [0.0] * 3)]})
     for name, outcome in outcomes.items():

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-import yaml
 from geometry_msgs.msg import PoseStamped
 from itasc_msgs.msg import ConstraintRows
 from rclpy.executors import SingleThreadedExecutor
@@ -24,7 +23,8 @@ from itasc_core.communication.events import EventListener
 from itasc_core.entity import CompositeContext
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
-from itasc_core.itasc.entities.messages import read_table, stamp, table_msg
+from itasc_core.communication.samples import as_message, as_sample
+from itasc_core.itasc.entities.messages import FeaturesSample, stamp
 from itasc_drivers.fake_ros2_control import PANDA, PANDA_READY, FakeRos2Control
 from itasc_drivers.pose_sensor import PoseSensor
 from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
@@ -93,10 +93,6 @@ def link(source, output: str, target, input_: str) -> None:
     target.inputs[input_].connect(source.outputs[output].topic)
 
 
-def flow(value: dict) -> str:
-    return yaml.safe_dump(value, default_flow_style=True, width=math.inf).strip()
-
-
 def panda_limits() -> dict:
     robot = Robot('panda', URDF)
     return {'joint_names': robot.joint_names, 'lower': robot.lower.tolist(), 'upper': robot.upper.tolist(),
@@ -105,15 +101,19 @@ def panda_limits() -> dict:
 
 # -- messages --------------------------------------------------------------------------------------
 
-def test_labelled_table_round_trip():
-    values = np.arange(12.0).reshape(3, 4)
-    table = read_table(table_msg(('x', 'y', 'rz'), ('value', 'j1', 'j2', 'j3'), values, rotation=0))
-    assert table.rows == ('x', 'y', 'rz') and table.columns[1:] == ('j1', 'j2', 'j3') and table.rotation == 0
-    assert np.array_equal(table.values, values) and np.array_equal(table.column('value'), values[:, 0])
-    broken = table_msg(('x',), ('value',), np.zeros((1, 1)))
-    broken.data = [1.0, 2.0]
-    with pytest.raises(ValueError):
-        read_table(broken)
+def test_features_travel_as_a_typed_message_and_back():
+    jacobian = np.arange(9.0).reshape(3, 3)
+    sample = FeaturesSample(1.25, ('x', 'y', 'rz'), ('j1', 'j2', 'j3'), np.array([1.0, 2.0, 3.0]), jacobian,
+                            rotation=0)
+    msg = as_message(sample)
+    assert list(msg.names) == ['x', 'y', 'rz'] and list(msg.joint_names) == ['j1', 'j2', 'j3']
+    assert (msg.stamp.sec, msg.stamp.nanosec, msg.rotation) == (1, 250_000_000, 0)
+    back = as_sample(msg)
+    assert back.names == sample.names and back.joint_names == sample.joint_names and back.rotation == 0
+    assert np.array_equal(back.value, sample.value) and np.array_equal(back.jacobian, jacobian) and back.t == 1.25
+    msg.jacobian = [1.0, 2.0]
+    with pytest.raises(ValueError, match='3 names on 3 joints'):
+        as_sample(msg)
 
 
 # -- Robot, Scene, Task entities, Solver, simulated Driver -------------------------------------------------
@@ -121,12 +121,13 @@ def test_labelled_table_round_trip():
 def test_robot_entity_maps_joints_by_name_and_reports_missing_ones(world):
     robot = world.entity(RobotEntity, 'Robot_panda', robot='panda', urdf=URDF)
     names = list(reversed(PANDA)) + ['panda_finger_joint1']
-    robot.inputs['measured'].deliver(JointState(name=names, position=[READY[n] for n in names[:-1]] + [0.04]), 'x')
+    measured = JointState(name=names, position=[READY[n] for n in names[:-1]] + [0.04])
+    robot.inputs['measured'].deliver(as_sample(measured), 'x')
     robot.update(0.0)
     out = robot.outputs['joint_state'].last
     assert list(out.name) == PANDA and list(out.position) == PANDA_READY
     robot.outputs['joint_state'].last = None
-    robot.inputs['measured'].deliver(JointState(name=PANDA[:6], position=PANDA_READY[:6]), 'x')
+    robot.inputs['measured'].deliver(as_sample(JointState(name=PANDA[:6], position=PANDA_READY[:6])), 'x')
     robot.update(0.01)
     assert robot.outputs['joint_state'].last is None
     assert world.spin_until(lambda: 'e_panda_joints_missing' in world.seen)
@@ -135,14 +136,13 @@ def test_robot_entity_maps_joints_by_name_and_reports_missing_ones(world):
 def _program(world, *, setpoint: dict, weights=(1.0,)):
     """Driver -> Robot -> Scene -> Task (VKC, CO, SPG, CC, Rows) -> Solver -> Driver."""
     task = 'Approach'
-    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF, initial_names=PANDA,
-                          initial_positions=PANDA_READY)
+    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF,
+                          initial=dict(zip(PANDA, PANDA_READY)))
     robot = world.entity(RobotEntity, 'Robot_panda', robot='panda', urdf=URDF)
     scene = world.entity(SceneEntity, 'Scene',
-                         robots=[flow({'name': 'panda', 'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}})],
-                         objects=[flow({'name': 'target', 'xyz': [0.45, 0.1, 0.3],
-                                        'frames': {'grasp': {'rpy': [math.pi, 0, 0]}}})],
-                         relations=[flow({'name': task, 'o1': 'target/grasp', 'o2': 'panda/tcp'})])
+                         robots={'panda': {'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}}},
+                         objects={'target': {'xyz': [0.45, 0.1, 0.3], 'frames': {'grasp': {'rpy': [math.pi, 0, 0]}}}},
+                         relations={task: {'o1': 'target/grasp', 'o2': 'panda/tcp'}})
     vkc = world.entity(VKCEntity, 'VKC', task=task, type='cartesian', o1='target/grasp', o2='panda/tcp')
     co = world.entity(ConstraintOutputEntity, 'CO', task=task)
     spg = world.entity(SetpointGeneratorEntity, 'SPG', task=task, tick_period=DT, **setpoint)
@@ -168,8 +168,7 @@ def run(entities, ticks: int, start: float = 0.0) -> float:
 
 
 def test_a_task_drives_the_simulated_robot_onto_the_grasp_frame(world):
-    entities = _program(world, setpoint={'kind': 'minimum_jerk', 'target': [0.0] * 6, 'target_is_pose': True,
-                                         'duration': 1.5})
+    entities = _program(world, setpoint={'kind': 'minimum_jerk', 'pose': {}, 'duration': 1.5})
     driver, rows, solver, spg = entities[0], entities[7], entities[8], entities[5]
     run(entities, 150)
     assert 0.9 < spg.outputs['progress'].last.data <= 1.0
@@ -179,41 +178,88 @@ def test_a_task_drives_the_simulated_robot_onto_the_grasp_frame(world):
     assert state.error_norm < 1e-4 and np.linalg.norm(state.output[:3]) < 1e-3
     command = solver.outputs['command'].last
     assert list(command.name) == PANDA and all(math.isfinite(v) for v in command.velocity)
-    assert solver.outputs['status'].last.active_tasks == ['Approach']
+    assert list(solver.outputs['status'].last.active_tasks) == ['Approach']
     assert list(driver.outputs['joint_state'].last.name) == PANDA
 
 
-@pytest.mark.parametrize('chain', [
-    {'type': 'cartesian'}, {'type': 'cartesian', 'coordinates': 'log6'}, {'type': 'distance'},
-    {'type': 'joint', 'joints': ['panda_joint2', 'panda_joint4']}], ids=lambda c: c.get('coordinates', c['type']))
-def test_vkc_entity_computes_what_the_math_chain_computes_on_the_scene(world, chain):
-    from itasc_tasks.vkc import CartesianVKC, DistanceVKC, JointVKC
+@pytest.mark.parametrize('task', [
+    {'chain': {'type': 'cartesian'}, 'setpoint': {'kind': 'minimum_jerk', 'pose': {'xyz': [0.1, 0, 0]},
+                                                  'duration': 0.05}},
+    {'chain': {'type': 'cartesian', 'coordinates': 'log6'}, 'outputs': ['x', 'y', 'z'],
+     'setpoint': {'kind': 'fixed', 'pose': {'rpy': [0.1, 0, 0]}}},
+    {'chain': {'type': 'cartesian'}, 'outputs': ['z', 'rx', 'ry', 'rz'], 'setpoint': {'kind': 'hold'}},
+    {'chain': {'type': 'distance'}, 'bounds': {'lower': [0.3]}},
+    {'chain': {'type': 'point_plane', 'normal': (0.0, 1.0, 1.0)}, 'bounds': {'lower': [-0.2], 'upper': [0.1]}},
+    {'chain': {'type': 'joint', 'joints': ['panda_joint2', 'panda_joint4']},
+     'setpoint': {'kind': 'periodic', 'amplitude': [0.1, 0.2], 'period': 0.04}}],
+    ids=['cartesian', 'log6', 'rotation', 'distance', 'point_plane', 'joint'])
+def test_the_task_entities_and_task_computation_compute_the_same_rows(world, task):
+    """The same Task as entities (VKC, CO, SPG, CC, Rows, fed by the Scene entity) and as one
+    TaskComputation on the Scene entity's Scene: the same rows, tick by tick, the robot moving."""
+    from itasc_core.itasc.robot import se3
+    from itasc_tasks.constraint_controller import PIDController
+    from itasc_tasks.constraint_output import ConstraintOutput
+    from itasc_tasks.setpoint_generator import FixedSetpoint, MinimumJerkSetpoint, PeriodicSetpoint
+    from itasc_tasks.task import TaskComputation
+    from itasc_tasks.task_types import TASK_TYPES
     o1, o2 = 'target/grasp', 'panda/tcp'
+    chain, outputs, bounds = task['chain'], task.get('outputs', []), task.get('bounds')
+    joints = chain['type'] == 'joint'
     scene = world.entity(SceneEntity, 'Scene',
-                         robots=[flow({'name': 'panda', 'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}})],
-                         objects=[flow({'name': 'target', 'xyz': [0.5, 0.1, 0.3], 'rpy': [3.0, 0.2, 0.1],
-                                        'frames': {'grasp': {'xyz': [0, 0, 0.05]}}})],
-                         relations=[flow({'name': 'T', 'o1': o1, 'o2': o2})])
-    vkc = world.entity(VKCEntity, 'VKC', task='T', o1=o1, o2=o2, **chain)
-    link(scene, 'joint_state' if chain['type'] == 'joint' else 'relation_T', vkc,
-         'joint_state' if chain['type'] == 'joint' else 'relation')
-    q = [0.1, -0.7, 0.2, -2.3, 0.1, 1.5, 0.7]
-    scene.inputs['joint_state_panda'].deliver(JointState(name=PANDA, position=q), 'robot')
-    scene.update(0.0)
-    vkc.update(0.0)
-    math_chain = {'cartesian': lambda: CartesianVKC(o1, o2, coordinates=chain.get('coordinates', 'xyz_log3')),
-                  'distance': lambda: DistanceVKC(o1, o2),
-                  'joint': lambda: JointVKC(chain.get('joints'))}[chain['type']]()
-    math_chain.compute(scene.scene)
-    features = read_table(vkc.outputs['features'].last)
-    assert features.rows == tuple(math_chain.names)
-    assert np.allclose(features.column('value'), math_chain.features, atol=1e-12)
-    assert np.allclose(features.matrix(), math_chain.jacobian, atol=1e-12)
+                         robots={'panda': {'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}}},
+                         objects={'target': {'xyz': [0.5, 0.1, 0.3], 'rpy': [3.0, 0.2, 0.1],
+                                             'frames': {'grasp': {'xyz': [0, 0, 0.05]}}}},
+                         relations={'T': {'o1': o1, 'o2': o2}})
+    frames = {} if joints else {'o1': o1, 'o2': o2}
+    gains = {'kp': 3.0, 'ki': 2.0, 'kd': 0.01, 'max_output': 0.5}
+    vkc = world.entity(VKCEntity, 'VKC', task='T', **frames, **chain)
+    co = world.entity(ConstraintOutputEntity, 'CO', task='T', outputs=outputs)
+    cc = world.entity(ConstraintControllerEntity, 'CC', task='T', tick_period=DT, inequality=bounds is not None,
+                      **gains, **(bounds or {}))
+    rows = world.entity(ConstraintRowsEntity, 'Rows', task='T', inequality=bounds is not None)
+    entities = [scene, vkc, co, cc, rows]
+    link(scene, 'joint_state' if joints else 'relation_T', vkc, 'joint_state' if joints else 'relation')
+    for wire in [(vkc, 'features', co, 'features'), (co, 'output', cc, 'output'), (co, 'output', rows, 'output'),
+                 (cc, 'control', rows, 'control')]:
+        link(*wire)
+    setpoint = None
+    if bounds is None:
+        sp = task['setpoint']
+        spg = world.entity(SetpointGeneratorEntity, 'SPG', task='T', tick_period=DT, outputs=outputs, **sp)
+        link(vkc, 'features', spg, 'features')
+        link(spg, 'setpoint', cc, 'setpoint')
+        entities.insert(3, spg)
+        pose = se3(sp['pose'].get('xyz', (0, 0, 0)), sp['pose'].get('rpy', (0, 0, 0))) if 'pose' in sp else None
+        setpoint = {'hold': lambda: None, 'fixed': lambda: FixedSetpoint(pose),
+                    'minimum_jerk': lambda: MinimumJerkSetpoint(pose, duration=sp['duration']),
+                    'periodic': lambda: PeriodicSetpoint(amplitude=sp['amplitude'], period=sp['period'])}[sp['kind']]()
+    kind = TASK_TYPES[chain['type']]
+    params = kind.Parameters(**frames, **{k: v for k, v in chain.items() if k != 'type'})
+    computation = TaskComputation('T', vkc=kind.chain(params), **frames,
+                                  output=ConstraintOutput(outputs or None), controller=PIDController(**gains),
+                                  setpoint=setpoint, lower=(bounds or {}).get('lower'),
+                                  upper=(bounds or {}).get('upper'))
+    rng = np.random.default_rng(4)
+    for k in range(8):
+        t = k * DT
+        q = np.array(PANDA_READY) + rng.uniform(-0.3, 0.3, 7)
+        scene.inputs['joint_state_panda'].deliver(as_sample(JointState(name=PANDA, position=q.tolist())), 'robot')
+        for entity in entities:
+            entity.update(t)
+        expected = computation.compute(scene.scene, t, DT if k else 0.0)
+        got = rows.outputs['rows'].last
+        assert got.t == t and got.inequality == (bounds is not None)
+        for field in ('jacobian', 'desired', 'lower', 'upper'):
+            want = expected.J if field == 'jacobian' else getattr(expected, field)
+            np.testing.assert_allclose(getattr(got, field), want, atol=1e-12, err_msg=f'{field} at tick {k}')
+        state = rows.outputs['state'].last
+        np.testing.assert_allclose(state.output, computation.y, atol=1e-12)
+        np.testing.assert_allclose(state.setpoint, computation.y_desired, atol=1e-12)
+        assert state.error_norm == pytest.approx(computation.error_norm, abs=1e-12)
 
 
 def test_setpoint_restarts_from_the_current_output_when_its_task_is_activated_again(world):
-    entities = _program(world, setpoint={'kind': 'minimum_jerk', 'target': [0.0] * 6, 'target_is_pose': True,
-                                         'duration': 2.0})
+    entities = _program(world, setpoint={'kind': 'minimum_jerk', 'pose': {}, 'duration': 2.0})
     spg = entities[5]
     run(entities, 50)
     assert spg.outputs['progress'].last.data == pytest.approx(49 * DT / 2.0)
@@ -237,10 +283,10 @@ def test_controller_gains_switch_by_parameters_as_a_configuration_does(world):
 def test_inequality_controller_bounds_the_output_velocity(world):
     cc = world.entity(ConstraintControllerEntity, 'CC', task='T', kind='p', kp=5.0, inequality=True, lower=[0.15])
     assert 'setpoint' not in cc.inputs
-    cc.inputs['output'].deliver(table_msg(('distance',), ('value', 'j1'), np.array([[0.1, 1.0]])), 'x')
+    cc.inputs['output'].deliver(FeaturesSample(0.0, ('distance',), ('j1',), np.array([0.1]), np.array([[1.0]])), 'x')
     cc.update(0.0)
-    control = read_table(cc.outputs['control'].last)
-    assert control.column('lower')[0] == pytest.approx(5.0 * (0.15 - 0.1)) and control.column('upper')[0] == math.inf
+    control = cc.outputs['control'].last
+    assert control.lower[0] == pytest.approx(5.0 * (0.15 - 0.1)) and control.upper[0] == math.inf
 
 
 def _rows(task: str, t: float, desired: float, *, joints=PANDA) -> ConstraintRows:
@@ -252,13 +298,13 @@ def _rows(task: str, t: float, desired: float, *, joints=PANDA) -> ConstraintRow
 
 def _solver(world, kind: str = 'wdls'):
     solver = world.entity(SolverEntity, 'Solver', kind=kind, period=DT, **panda_limits())
-    solver.inputs['joint_state'].deliver(JointState(name=PANDA, position=PANDA_READY), 'scene')
+    solver.inputs['joint_state'].deliver(as_sample(JointState(name=PANDA, position=PANDA_READY)), 'scene')
     return solver
 
 
 def test_solver_commands_zero_and_raises_emergency_on_nan_rows(world):
     solver = _solver(world)
-    solver.inputs['rows'].deliver(_rows('Bad', 0.0, math.nan), 'bad')
+    solver.inputs['rows'].deliver(as_sample(_rows('Bad', 0.0, math.nan)), 'bad')
     solver.update(0.0)
     assert list(solver.outputs['command'].last.velocity) == [0.0] * 7
     assert world.spin_until(lambda: 'e_emergency' in world.seen)
@@ -266,17 +312,17 @@ def test_solver_commands_zero_and_raises_emergency_on_nan_rows(world):
 
 def test_solver_uses_only_rows_of_this_tick_in_any_joint_order(world):
     solver = _solver(world, kind='qp')
-    solver.inputs['rows'].deliver(_rows('Old', 0.0, 0.3), 'old')
-    solver.inputs['rows'].deliver(_rows('New', 1.0, 0.2, joints=list(reversed(PANDA))), 'new')
+    solver.inputs['rows'].deliver(as_sample(_rows('Old', 0.0, 0.3)), 'old')
+    solver.inputs['rows'].deliver(as_sample(_rows('New', 1.0, 0.2, joints=list(reversed(PANDA)))), 'new')
     solver.update(0.99)
     solver.update(1.0)
-    assert solver.outputs['status'].last.active_tasks == ['New']
+    assert list(solver.outputs['status'].last.active_tasks) == ['New']
     assert solver.outputs['command'].last.velocity[6] == pytest.approx(0.2, abs=1e-4)  # panda_joint7
 
 
 def test_solver_raises_an_event_when_it_saturates(world):
     solver = _solver(world)
-    solver.inputs['rows'].deliver(_rows('Fast', 0.0, 100.0), 'fast')
+    solver.inputs['rows'].deliver(as_sample(_rows('Fast', 0.0, 100.0)), 'fast')
     solver.update(0.0)
     assert solver.outputs['status'].last.status == 'saturated'
     assert max(abs(v) for v in solver.outputs['command'].last.velocity) <= 2.175 + 1e-9
@@ -284,9 +330,9 @@ def test_solver_raises_an_event_when_it_saturates(world):
 
 
 def test_simulated_robot_respects_velocity_and_position_limits(world):
-    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF, initial_names=PANDA,
-                          initial_positions=PANDA_READY)
-    driver.inputs['command'].deliver(JointState(name=['panda_joint4', 'other'], velocity=[50.0, 1.0]), 'x')
+    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF,
+                          initial=dict(zip(PANDA, PANDA_READY)))
+    driver.inputs['command'].deliver(as_sample(JointState(name=['panda_joint4', 'other'], velocity=[50.0, 1.0])), 'x')
     for k in range(15):  # 1.4 s at 2.175 rad/s: beyond the limit
         driver.update(k * 0.1)
     state = driver.outputs['joint_state'].last
@@ -321,7 +367,7 @@ application:
 ''')
     parameters = load_composition(str(app)).entity('Driver_panda').parameters
     driver = world.entity(SimulatedRobot, 'Driver_panda', **parameters)
-    driver.inputs['command'].deliver(JointState(name=['panda_joint4'], velocity=[50.0]), 'x')
+    driver.inputs['command'].deliver(as_sample(JointState(name=['panda_joint4'], velocity=[50.0])), 'x')
     for k in range(15):  # 1.4 s at 0.5 rad/s from -1.5: beyond the model's -1.0
         driver.update(k * 0.1)
     state = driver.outputs['joint_state'].last
@@ -339,7 +385,7 @@ def test_a_driver_watchdog_does_not_count_the_time_its_process_did_not_run(world
     spec = next(p for p in driver_ports('panda') if p.name == 'joint_state')
     monitor = world.add(Monitor('Driver_panda_silent', composite=world.ctx, watch=spec, parameters={
         'condition': 'stale', 'timeout': 0.25, 'event': 'e_emergency'}))
-    state = JointState(name=PANDA, position=PANDA_READY)
+    state = as_sample(JointState(name=PANDA, position=PANDA_READY))
     for _ in range(5):  # a driver reporting at 100 Hz
         monitor.inputs['watch'].deliver(state, 'driver')
         monitor.update(0.0)
@@ -358,11 +404,10 @@ def test_a_driver_watchdog_does_not_count_the_time_its_process_did_not_run(world
 
 def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
     sensor = world.entity(PoseSensor, 'Sensor_cup', object='cup', topic=f'{world.ctx.namespace}/cup_pose')
-    scene = world.entity(SceneEntity, 'Scene', robots=[flow({'name': 'panda', 'urdf': URDF})],
-                         objects=[flow({'name': 'cup', 'sensed': True})],
-                         relations=[flow({'name': 'Look', 'o1': 'world', 'o2': 'cup'})])
+    scene = world.entity(SceneEntity, 'Scene', robots={'panda': {'urdf': URDF}}, objects={'cup': {'sensed': True}},
+                         relations={'Look': {'o1': 'world', 'o2': 'cup'}})
     link(sensor, 'pose', scene, 'pose_cup')
-    scene.inputs['joint_state_panda'].deliver(JointState(name=PANDA, position=PANDA_READY), 'robot')
+    scene.inputs['joint_state_panda'].deliver(as_sample(JointState(name=PANDA, position=PANDA_READY)), 'robot')
     publisher = world.observer.create_publisher(PoseStamped, f'{world.ctx.namespace}/cup_pose', 10)
     pose = PoseStamped()
     pose.header.frame_id = 'world'
@@ -372,8 +417,8 @@ def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
     assert world.spin_until(lambda: sensor.latest is not None)
     sensor.update(0.0)
     scene.update(0.0)
-    relation = read_table(scene.outputs['relation_Look'].last)
-    assert relation.column('value')[:3] == pytest.approx([0.7, 0.0, 0.0])
+    relation = scene.outputs['relation_Look'].last
+    assert relation.value[:3] == pytest.approx([0.7, 0.0, 0.0])
 
 
 # -- the ROS 2 driver adapter against a driver that speaks only standard messages ----------------------------
@@ -390,7 +435,8 @@ def test_ros2_control_adapter_maps_joints_by_name_and_commands_in_controller_ord
     assert list(adapter.outputs['joint_state'].last.name) == PANDA
     assert list(adapter.outputs['joint_state'].last.position) == pytest.approx(PANDA_READY)
     velocity = [0.1 * (i + 1) for i in range(7)]
-    adapter.inputs['command'].deliver(JointState(name=list(reversed(PANDA)), velocity=list(reversed(velocity))), 's')
+    command = JointState(name=list(reversed(PANDA)), velocity=list(reversed(velocity)))
+    adapter.inputs['command'].deliver(as_sample(command), 's')
     adapter.update(0.01)
     assert world.spin_until(lambda: [fake.velocities[j] for j in PANDA] == pytest.approx(velocity))
     adapter.disengage()
@@ -404,7 +450,7 @@ def test_ros2_control_adapter_integrates_positions_for_a_position_controller(wor
     adapter = world.entity(Ros2ControlAdapter, 'Driver_panda', robot='panda', joints=PANDA, interface='position',
                            joint_states_topic=f'{ns}/joint_states', command_topic=f'{ns}/position_controller/commands')
     adapter._on_state(JointState(name=PANDA, position=PANDA_READY))
-    adapter.inputs['command'].deliver(JointState(name=PANDA, velocity=[1.0] + [0.0] * 6), 's')
+    adapter.inputs['command'].deliver(as_sample(JointState(name=PANDA, velocity=[1.0] + [0.0] * 6)), 's')
     assert world.spin_until(lambda: adapter._publisher.get_subscription_count() > 0)
     for k in range(3):
         adapter.update(k * 0.1)
@@ -413,5 +459,37 @@ def test_ros2_control_adapter_integrates_positions_for_a_position_controller(wor
 
 
 def test_an_entity_refuses_invalid_parameters_at_construction(world):
-    with pytest.raises(ValueError, match='gains must be >= 0'):
+    with pytest.raises(ValueError, match='CC_bad: kp: Input should be greater than or equal to 0'):
         world.entity(ConstraintControllerEntity, 'CC_bad', task='T', kp=-1.0)
+
+
+def _call(world, client, future):
+    assert world.spin_until(future.done), 'no answer from the parameter services'
+    return future.result()
+
+
+def test_parameters_are_declared_typed_described_and_bounded_from_the_entitys_model(world):
+    """What ``ros2 param describe`` shows of an entity comes from its parameter model: the type (also
+    of an empty list), the field's docstring and its bounds; a change the model refuses is refused
+    with its reason, one it accepts takes effect."""
+    from rcl_interfaces.msg import ParameterType
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    cc = world.entity(ConstraintControllerEntity, 'CC', task='T', kp=2)
+    world.entity(ConstraintOutputEntity, 'CO', task='T')
+    client = AsyncParameterClient(world.observer, f'{world.ctx.namespace}/CC')
+    assert client.wait_for_services(timeout_sec=5.0)
+    kp, kind = _call(world, client, client.describe_parameters(['kp', 'kind'])).descriptors
+    assert kp.type == ParameterType.PARAMETER_DOUBLE and 'Proportional gain' in kp.description
+    assert (kp.floating_point_range[0].from_value, kp.floating_point_range[0].to_value) == (0.0, math.inf)
+    assert kind.type == ParameterType.PARAMETER_STRING and kind.additional_constraints == 'one of p, pid'
+    outputs = AsyncParameterClient(world.observer, f'{world.ctx.namespace}/CO')
+    assert outputs.wait_for_services(timeout_sec=5.0)
+    (described,) = _call(world, outputs, outputs.describe_parameters(['outputs'])).descriptors
+    assert described.type == ParameterType.PARAMETER_STRING_ARRAY  # an empty list, typed by the model
+    refused = _call(world, client, client.set_parameters([Parameter('max_output', value=0.0)])).results[0]
+    assert not refused.successful and 'max_output: Input should be greater than 0' in refused.reason
+    assert cc.controller.max_output == math.inf
+    accepted = _call(world, client, client.set_parameters([Parameter('kp', value=5.0)])).results[0]
+    assert accepted.successful and cc.controller.kp == 5.0

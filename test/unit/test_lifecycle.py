@@ -118,3 +118,13 @@ def test_stop_order_and_adopted_children_are_waited_for():
                              'Active.Stop.Stopped.CleanupComputation', 'Active.Stop.Stopped.Cleanup',
                              'Active.Stop.Stopped.NotifyStopped']
     assert r.raised[-1] == ('e_itasc_stopped', True)
+
+
+def test_a_released_child_is_commanded_to_stop_and_no_longer_waited_for():
+    r = Recorder(composite='itasc', children=['A', 'B'])
+    bring_to_running(r, children=['A', 'B'])
+    r.fsm.release('B')
+    assert r.raised[-1] == ('e_B_stop', False) and r.fsm.children == ('A',)
+    r.feed('e_itasc_stop', 'e_A_stopped')  # B is not waited for
+    assert r.fsm.state == 'Active.Stop.Stopped.Disengage'
+    assert ('e_B_stop', False) not in r.raised[r.raised.index(('e_B_stop', False)) + 1:]

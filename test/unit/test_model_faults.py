@@ -91,6 +91,14 @@ def test_a_monitor_threshold_of_nan_is_refused(config):
     assert (err.file, err.path) == (str(_program(config)), 'monitors[0].threshold'), str(err)
 
 
+@pytest.mark.parametrize('kind', [{'a': [1]}, ['cartesian'], 3])
+def test_a_task_type_that_is_not_a_name_is_refused(config, kind):
+    task = config / 'tasks' / 'approach_object.yaml'
+    edit_yaml(task, lambda t: t.update(type=kind))
+    err = refused(_app(config))
+    assert err.file == str(task) and 'unknown task type' in err.message, str(err)
+
+
 def test_a_negative_minimum_distance_is_refused(config):
     task = config / 'tasks' / 'avoid_obstacle.yaml'
     edit_yaml(task, lambda t: t.update(d_min=-0.15))
@@ -246,7 +254,8 @@ def test_kinds_are_the_registered_ones_and_those_of_the_entry_point_group(tmp_pa
     dist = tmp_path / 'itasc_plugin-1.0.dist-info'
     dist.mkdir()
     (dist / 'METADATA').write_text('Metadata-Version: 2.1\nName: itasc-plugin\nVersion: 1.0\n')
-    (dist / 'entry_points.txt').write_text(f'[{ENTRY_POINTS}]\nPluginSine = itasc_core.computation.library:SineSource\n')
+    (dist / 'entry_points.txt').write_text(
+        f'[{ENTRY_POINTS}]\nPluginSine = itasc_core.computation.library:SineSource\n')
     monkeypatch.syspath_prepend(str(tmp_path))
     assert known_kind('PluginSine') and resolve_kind('PluginSine') is SineSource
 
@@ -283,7 +292,7 @@ def _nodes(value: Any, loc: tuple = ()):
 
 def _schema_at(loc: tuple) -> tuple[Any, Any]:
     """The annotation of the application model at ``loc``, and the pydantic field it is (or None)."""
-    annotation, field = typing.Dict[str, Application], None  # noqa: UP006 (the file's top level)
+    annotation, field = typing.Dict[str, Application], None
     for part in loc:
         annotation = _unwrap(annotation)
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):

@@ -46,13 +46,16 @@ def test_the_schema_refuses_what_the_loader_refuses():
 
 def test_the_reference_documents_every_field_and_every_kind():
     text = markdown(examples=config_dirs()[-1])
-    for section in ('Application', 'Program', 'Task', 'Controller', 'Setpoint', 'Monitor', 'Driver', 'Solver'):
+    for section in ('Application', 'Program', 'CartesianTask', 'PointPlaneTask', 'Controller', 'Setpoint',
+                    'AboveMonitor', 'InsideMonitor', 'Driver', 'Solver'):
         assert f'\n## {section}\n' in text
     rows = [line for line in text.splitlines() if line.startswith('| `') and line.count('|') >= 5]
     undocumented = [row for row in rows if row.rstrip().endswith('|  |')]
     assert not undocumented, undocumented
-    for kind in ('type: cartesian', 'type: distance', 'kind: qp', 'kind: wdls', 'condition: above', 'kind: simulated'):
+    for kind in ('type: cartesian', 'type: distance', 'type: point_plane', 'kind: qp', 'kind: wdls', 'condition: above',
+                 'condition: inside', 'kind: simulated'):
         assert f'**{kind}**' in text
+    assert 'NearMonitor' not in text and 'HorizontalDistanceTask' not in text  # the test package's kinds
 
 
 def test_check_validates_without_starting_anything(tmp_path):

@@ -16,7 +16,7 @@ INF = np.full(7, np.inf)
 # Closed-form comparisons need undamped WDLS: damping starts below s_min = 1e-3 here. Random
 # configurations come near singular (s_min ~ 0.007 for the elbow at seed 4), so the QP's
 # singularity threshold is 1e-3 too, checked on every step (tests share the solver objects).
-SINGULARITY = dict(singularity_epsilon=1e-3, singularity_check_period=1)
+SINGULARITY = {'singularity_epsilon': 1e-3, 'singularity_check_period': 1}
 SOLVERS = [WdlsSolver(epsilon=1e-3), QpSolver(**SINGULARITY), QpSolver(backend='quadprog', **SINGULARITY),
            QpSolver(direct=False, **SINGULARITY)]
 IDS = ['wdls', 'qp-daqp', 'qp-quadprog', 'qp-daqp-via-qpsolvers']
@@ -103,10 +103,10 @@ def test_pink_cross_check(panda):
         v_pink = pink.solve_ik(configuration, [frame_task, posture_task], dt, solver='daqp',
                                damping=damping)
         tasks = [
-            TaskComputation('frame', vkc=CartesianVKC('target', 'panda/ee', coordinates='log6'),
+            TaskComputation('frame', vkc=CartesianVKC(coordinates='log6'), o1='target', o2='panda/ee',
                             controller=PController(kp=gain / dt),
                             setpoint=FixedSetpoint(np.zeros(6)), weights=cost ** 2),
-            TaskComputation('posture', vkc=JointVKC(), controller=PController(kp=gain / dt),
+            TaskComputation('posture', vkc=JointVKC(scene.joint_names), controller=PController(kp=gain / dt),
                             setpoint=FixedSetpoint(q_posture), weights=posture_cost ** 2)]
         result = solver.solve([t.compute(scene, 0.0, dt) for t in tasks], q=scene.q,
                               lower=scene.lower, upper=scene.upper,
@@ -125,9 +125,9 @@ def test_joint_limits_never_exceeded(panda):
     mid = (panda.lower + panda.upper) / 2
     panda.set_position_vector(mid)
     scene.update()
-    hand = TaskComputation('hand', vkc=CartesianVKC('world', 'panda/ee'),
+    hand = TaskComputation('hand', vkc=CartesianVKC(), o1='world', o2='panda/ee',
                            controller=PController(kp=20.0), setpoint=FixedSetpoint(pin.SE3()))
-    posture = TaskComputation('posture', vkc=JointVKC(), controller=PController(kp=5.0),
+    posture = TaskComputation('posture', vkc=JointVKC(scene.joint_names), controller=PController(kp=5.0),
                               setpoint=FixedSetpoint(mid), priority=1, weights=0.1)
     solver, dt = QpSolver(), 0.01
     closest = np.inf
@@ -193,7 +193,7 @@ def test_qp_reports_a_singular_configuration_and_stays_bounded(panda, solver):
     panda.update()
     J = panda.frame_jacobian('ee')
     U, s, _ = np.linalg.svd(J)
-    limits = dict(q=np.zeros(7), lower=-INF[:7], upper=INF[:7], velocity_limit=np.full(7, 2.0), dt=0.01)
+    limits = {'q': np.zeros(7), 'lower': -INF[:7], 'upper': INF[:7], 'velocity_limit': np.full(7, 2.0), 'dt': 0.01}
     result = solver.solve([ConstraintRows.equality('hand', J, 0.1 * U[:, -1])], **limits)
     assert result.singular and result.status == 'singular'
     assert result.min_singular_value < 1e-5 and s[-1] < 1e-5
@@ -214,7 +214,7 @@ def test_qp_detects_a_singularity_within_its_check_period(panda):
     the arm's pose of the last check (numpy's SVD of the task Jacobian)."""
     period = 3
     solver = QpSolver(singularity_check_period=period)
-    limits = dict(q=np.zeros(7), lower=-INF[:7], upper=INF[:7], velocity_limit=np.full(7, 2.0), dt=0.01)
+    limits = {'q': np.zeros(7), 'lower': -INF[:7], 'upper': INF[:7], 'velocity_limit': np.full(7, 2.0), 'dt': 0.01}
     stretched, ready = np.array([0.0, 0.0, 0.0, -1e-6, 0.0, np.pi / 2, 0.0]), np.array(PANDA_READY)
     poses = [ready] * 4 + [stretched] * 4 + [ready] * 4
     singular, measured = [], []

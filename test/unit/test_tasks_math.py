@@ -6,11 +6,13 @@ import pinocchio as pin
 import pytest
 from conftest import PANDA
 from itasc_core.itasc import Object, Robot, Scene, se3
-from itasc_tasks.constraint_controller import PController, PIDController
+from itasc_tasks.constraint_controller import (PController, PIDController, control_error, equality_control,
+                                               inequality_control)
 from itasc_tasks.constraint_output import ConstraintOutput
-from itasc_tasks.setpoint_generator import (FixedSetpoint, MinimumJerkSetpoint, PeriodicSetpoint,
-                                            TopicSetpoint, TrapezoidalSetpoint)
+from itasc_tasks.setpoint_generator import (FixedSetpoint, MinimumJerkSetpoint, OutputSetpoint, PeriodicSetpoint,
+                                            TopicSetpoint, TrapezoidalSetpoint, start_value)
 from itasc_tasks.task import TaskComputation
+from itasc_core.itasc.coordinates import features_pose, pose_features
 from itasc_tasks.vkc import CartesianVKC, DistanceVKC, JointVKC
 
 
@@ -41,109 +43,128 @@ def _tangent_derivative(scene, feature, h=1e-7):
     return np.column_stack(columns)
 
 
+def _relation(scene, o1='obstacle', o2='panda/ee'):
+    """What a chain between o1 and o2 reads: the relation's pose and Jacobian."""
+    return scene.relative_pose(o1, o2), scene.relative_jacobian(o1, o2)
+
+
 def test_cartesian_vkc_features_and_jacobians(scene):
-    vkc = CartesianVKC('obstacle', 'panda/ee')
-    vkc.compute(scene)
+    vkc = CartesianVKC()
+    features, jacobian = vkc(*_relation(scene))
     T = scene.relative_pose('obstacle', 'panda/ee')
-    np.testing.assert_allclose(vkc.features, np.r_[T.translation, pin.log3(T.rotation)])
-    np.testing.assert_allclose(vkc.jacobian, scene.relative_jacobian('obstacle', 'panda/ee'))
+    np.testing.assert_allclose(features, np.r_[T.translation, pin.log3(T.rotation)])
+    np.testing.assert_allclose(jacobian, scene.relative_jacobian('obstacle', 'panda/ee'))
+    assert vkc.rotation == 3
+    np.testing.assert_allclose(jacobian[:3], _tangent_derivative(scene, lambda: vkc(*_relation(scene))[0][:3]),
+                               atol=1e-6)
+    log6 = CartesianVKC(coordinates='log6')
+    features, jacobian = log6(*_relation(scene))
+    np.testing.assert_allclose(features, pin.log6(T).vector)
+    np.testing.assert_allclose(jacobian, _tangent_derivative(scene, lambda: log6(*_relation(scene))[0]), atol=1e-6)
+    assert log6.rotation is None
 
-    def position():
-        vkc.compute(scene)
-        return vkc.features[:3].copy()
 
-    J = vkc.jacobian.copy()
-    np.testing.assert_allclose(J[:3], _tangent_derivative(scene, position), atol=1e-6)
-    log6 = CartesianVKC('obstacle', 'panda/ee', coordinates='log6')
-
-    def chi():
-        log6.compute(scene)
-        return log6.features.copy()
-
-    log6.compute(scene)
-    np.testing.assert_allclose(log6.features, pin.log6(T).vector)
-    np.testing.assert_allclose(log6.jacobian, _tangent_derivative(scene, chi), atol=1e-6)
+@pytest.mark.parametrize('coordinates', ['xyz_log3', 'log6'])
+def test_pose_features_and_back(coordinates):
+    pose = se3((0.4, -0.2, 0.5), (2.0, -0.4, 0.9))
+    features = pose_features(pose, coordinates=coordinates)
+    assert features_pose(features, coordinates=coordinates).isApprox(pose, 1e-12)
 
 
 @pytest.mark.parametrize('normal', [None, (0.0, 0.0, 1.0), (1.0, 1.0, 0.0)])
 def test_distance_vkc(scene, normal):
-    vkc = DistanceVKC('obstacle', 'panda/ee', normal=normal)
-    vkc.compute(scene)
+    """The point-point distance, and the point-plane one of the task type point_plane."""
+    from itasc_tasks.task_types.point_plane import PointPlaneVKC
+    vkc = DistanceVKC() if normal is None else PointPlaneVKC(normal=normal)
+    features, jacobian = vkc(*_relation(scene))
     p = scene.relative_pose('obstacle', 'panda/ee').translation
     expected = np.linalg.norm(p) if normal is None else np.dot(normal, p) / np.linalg.norm(normal)
-    assert vkc.features[0] == pytest.approx(expected)
-
-    def distance():
-        vkc.compute(scene)
-        return vkc.features.copy()
-
-    vkc.compute(scene)
-    J = vkc.jacobian.copy()
-    np.testing.assert_allclose(J, _tangent_derivative(scene, distance), atol=1e-6)
+    assert features[0] == pytest.approx(expected)
+    np.testing.assert_allclose(jacobian, _tangent_derivative(scene, lambda: vkc(*_relation(scene))[0]), atol=1e-6)
 
 
 def test_joint_vkc_selection_and_rebinding(scene):
     vkc = JointVKC(['panda_joint4', 'panda_joint2'])
-    vkc.compute(scene)
-    np.testing.assert_allclose(vkc.features, [-2.0, -0.3])
-    assert vkc.jacobian.shape == (2, 7) and vkc.jacobian[0, 3] == 1 and vkc.jacobian[1, 1] == 1
-    posture = JointVKC()
+    features, jacobian = vkc(scene.joint_names, scene.q)
+    np.testing.assert_allclose(features, [-2.0, -0.3])
+    assert jacobian.shape == (2, 7) and jacobian[0, 3] == 1 and jacobian[1, 1] == 1
     scene.add_robot(Robot('other', PANDA, prefix='o_'))
-    posture.compute(scene)
-    vkc.compute(scene)
-    assert posture.names == tuple(scene.joint_names) and vkc.jacobian.shape == (2, 14)
-    np.testing.assert_array_equal(posture.jacobian, np.eye(14))
+    features, jacobian = vkc(scene.joint_names, scene.q)
+    assert jacobian.shape == (2, 14) and jacobian[0, 3] == 1
+    posture = JointVKC(scene.joint_names)
+    features, jacobian = posture(scene.joint_names, scene.q)
+    np.testing.assert_array_equal(jacobian, np.eye(14))
+    np.testing.assert_array_equal(features, scene.q)
+    with pytest.raises(KeyError, match='no joints'):
+        JointVKC(['nope'])(scene.joint_names, scene.q)
 
 
 def test_constraint_output_selection_combination_rotation(scene):
-    vkc = CartesianVKC('obstacle', 'panda/ee')
-    vkc.compute(scene)
-    co = ConstraintOutput(['z', 'rx', 'ry', 'rz'])
-    co.compute(vkc)
-    np.testing.assert_allclose(co.y, vkc.features[2:])
-    np.testing.assert_allclose(co.jacobian, vkc.jacobian[2:])
-    assert co.rotation == slice(1, 4)
-    partial = ConstraintOutput(['rz'])
-    partial.compute(vkc)
-    assert partial.rotation is None
-    combined = ConstraintOutput(['x', 'y'], combination=[[1.0, -1.0]])
-    combined.compute(vkc)
-    assert combined.y[0] == pytest.approx(vkc.features[0] - vkc.features[1])
-    np.testing.assert_allclose(combined.jacobian[0], vkc.jacobian[0] - vkc.jacobian[1])
+    features, jacobian = CartesianVKC()(*_relation(scene))
+    names = CartesianVKC.names
+    selection = ConstraintOutput(['z', 'rx', 'ry', 'rz']).bind(names, 3)
+    y, J = selection(features, jacobian)
+    np.testing.assert_allclose(y, features[2:])
+    np.testing.assert_allclose(J, jacobian[2:])
+    assert selection.rotation == 1 and selection.names == ('z', 'rx', 'ry', 'rz')
+    assert ConstraintOutput(['rz']).bind(names, 3).rotation is None
+    assert ConstraintOutput().bind(names, None).rotation is None  # log6: no rotation triple
+    combined = ConstraintOutput(['x', 'y'], combination=[[1.0, -1.0]]).bind(names, 3)
+    y, J = combined(features, jacobian)
+    assert y[0] == pytest.approx(features[0] - features[1]) and combined.names == ('y0',)
+    np.testing.assert_allclose(J[0], jacobian[0] - jacobian[1])
     with pytest.raises(KeyError, match='not among'):
-        ConstraintOutput(['distance']).compute(vkc)
+        ConstraintOutput(['distance']).bind(names, 3)
     with pytest.raises(ValueError, match='consecutively'):
-        ConstraintOutput(['rz', 'ry', 'rx']).compute(vkc)
+        ConstraintOutput(['rz', 'ry', 'rx']).bind(names, 3)
 
 
 def test_p_controller_rotation_error_feedforward_saturation():
     cc = PController(kp=2.0, max_output=np.array([1.0, 1.0, 1.0, 0.5, 0.5, 0.5]))
-    cc.rotation = slice(3, 6)
     R, Rd = pin.exp3(np.array([0.3, -0.2, 1.0])), pin.exp3(np.array([0.1, 0.4, -2.5]))
     y = np.r_[0.0, 0.0, 0.0, pin.log3(R)]
     yd = np.r_[0.1, 0.0, 3.0, pin.log3(Rd)]
-    out = cc(y, yd, np.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01)
-    np.testing.assert_allclose(cc.error[3:], pin.log3(Rd @ R.T))  # not yd - y
+    out, lower, upper, setpoint, error = equality_control(cc, y, yd, np.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01,
+                                                         rotation=3)
+    np.testing.assert_allclose(error[3:], pin.log3(Rd @ R.T))  # not yd - y
     assert out[0] == pytest.approx(0.25) and out[2] == 1.0  # ff + kp e, then saturated
     assert np.all(np.abs(out[3:]) <= 0.5)
+    assert lower is out and upper is out and setpoint is yd
     cc.kp = np.array([0.0, 0.0, 0.0, 0.1, 0.1, 0.1])  # switched by a Configurator
-    np.testing.assert_allclose(cc(y, yd, 0.0, 0.01)[3:], 0.1 * pin.log3(Rd @ R.T))
+    np.testing.assert_allclose(equality_control(cc, y, yd, 0.0, 0.01, rotation=3)[0][3:], 0.1 * pin.log3(Rd @ R.T))
+    np.testing.assert_allclose(control_error(y, yd), yd - y)  # no rotation triple: the plain difference
 
 
 def test_pid_integral_anti_windup_and_derivative():
     cc = PIDController(kp=1.0, ki=10.0, kd=0.5, max_output=1.0)
     dt = 0.1
-    out = cc(np.array([0.0, 0.0]), np.array([0.02, 5.0]), 0.0, dt)
+    out = cc(np.array([0.02, 5.0]), 0.0, dt)
     assert out[0] == pytest.approx(0.02 + 10 * 0.002) and out[1] == 1.0
     for _ in range(20):
-        out = cc(np.array([0.0, 0.0]), np.array([0.02, 5.0]), 0.0, dt)
+        out = cc(np.array([0.02, 5.0]), 0.0, dt)
     assert cc.integral[1] == pytest.approx(0.5)  # frozen once the output saturated
     assert cc.integral[0] == pytest.approx(0.02 * 2.1)
     cc.reset()
     cc.max_output = 10.0
-    assert cc(np.array([0.0]), np.array([1.0]), 0.0, dt)[0] == pytest.approx(1.0 + 10 * 0.1)
-    out = cc(np.array([0.0]), np.array([0.5]), 0.0, dt)
+    assert cc(np.array([1.0]), 0.0, dt)[0] == pytest.approx(1.0 + 10 * 0.1)
+    out = cc(np.array([0.5]), 0.0, dt)
     assert out[0] == pytest.approx(0.5 + 10 * 0.15 + 0.5 * (-0.5 / dt))
+
+
+def test_inequality_bound_is_free_inside_the_band_and_pushes_back_beyond_it():
+    lower, upper, kp = np.array([0.2, -1.0]), np.array([0.5, 1.0]), 4.0
+    desired, low, high, setpoint, error = inequality_control(np.array([0.3, 0.0]), lower=lower, upper=upper, kp=kp)
+    np.testing.assert_allclose(error, 0.0)  # inside: no error, the setpoint is y itself
+    np.testing.assert_allclose(setpoint, [0.3, 0.0])
+    assert np.all(low < 0.0) and np.all(high > 0.0)  # ydot = 0 is allowed
+    np.testing.assert_allclose(low, kp * (lower - [0.3, 0.0]))
+    np.testing.assert_allclose(desired, 0.0)
+    _, low, high, _, error = inequality_control(np.array([0.1, 1.5]), lower=lower, upper=upper, kp=kp)
+    np.testing.assert_allclose(error, [0.1, -0.5])  # towards the nearest bound
+    assert low[0] == pytest.approx(kp * 0.1) and low[0] > 0.0  # must move up at rate kp
+    assert high[1] == pytest.approx(kp * -0.5) and high[1] < 0.0  # must move down
+    _, low, high, _, _ = inequality_control(np.array([0.1]), lower=0.15, upper=np.inf, kp=5.0)
+    assert low[0] == pytest.approx(5.0 * 0.05) and high[0] == np.inf
 
 
 def test_minimum_jerk_vector_time_and_velocity_bounded():
@@ -212,7 +233,7 @@ def test_periodic_and_topic_setpoints():
 
 
 def test_task_equality_rows_and_monitoring(scene):
-    task = TaskComputation('hand', vkc=CartesianVKC('world', 'panda/ee'),
+    task = TaskComputation('hand', vkc=CartesianVKC(), o1='world', o2='panda/ee',
                            output=ConstraintOutput(['x', 'y', 'z']),
                            controller=PController(kp=2.0), priority=1, weights=[1.0, 2.0, 3.0],
                            setpoint=MinimumJerkSetpoint([0.5, 0.0, 0.4], duration=1.0))
@@ -232,7 +253,7 @@ def test_task_equality_rows_and_monitoring(scene):
 
 
 def test_task_inequality_rows(scene):
-    task = TaskComputation('avoid', vkc=DistanceVKC('obstacle', 'panda/ee'),
+    task = TaskComputation('avoid', vkc=DistanceVKC(), o1='obstacle', o2='panda/ee',
                            controller=PController(kp=5.0), lower=0.5)
     rows = task.compute(scene, 0.0, 0.01)
     d = task.y[0]
@@ -243,7 +264,7 @@ def test_task_inequality_rows(scene):
 
 def test_task_se3_setpoint_and_default_hold(scene):
     target = se3((0.4, 0.2, 0.5), (np.pi, 0.0, 0.3))
-    task = TaskComputation('hand', vkc=CartesianVKC('world', 'panda/ee'),
+    task = TaskComputation('hand', vkc=CartesianVKC(), o1='world', o2='panda/ee',
                            setpoint=FixedSetpoint(target), controller=PController(kp=1.0))
     rows = task.compute(scene, 0.0, 0.01)
     T = scene.pose('panda/ee')
@@ -253,3 +274,23 @@ def test_task_se3_setpoint_and_default_hold(scene):
     hold.compute(scene, 0.0, 0.01)
     np.testing.assert_allclose(hold.y_desired, [0.2])
     assert isinstance(hold.setpoint, FixedSetpoint)
+
+
+@pytest.mark.parametrize('coordinates', ['xyz_log3', 'log6'])
+def test_pose_setpoints_in_output_space_and_their_start(scene, coordinates):
+    """A pose target reaches the controller in the chain's coordinates, selected by the CO; a
+    point-to-point motion to a pose starts from the current pose of o2 in o1."""
+    vkc = CartesianVKC(coordinates=coordinates)
+    features, _ = vkc(*_relation(scene))
+    selection = ConstraintOutput(['x', 'y', 'z']).bind(vkc.names, vkc.rotation)
+    target = se3((0.4, 0.2, 0.5), (np.pi, 0.0, 0.3))
+    value, velocity = OutputSetpoint()(target, np.arange(6.0), selection=selection, rotation=vkc.rotation)
+    np.testing.assert_allclose(value, pose_features(target, coordinates=coordinates)[:3])
+    np.testing.assert_allclose(velocity, [0.0, 1.0, 2.0])
+    vector = np.array([1.0, 2.0, 3.0])
+    assert OutputSetpoint()(vector, vector, selection=selection, rotation=vkc.rotation)[0] is vector
+    motion = MinimumJerkSetpoint(target, duration=1.0)
+    start = start_value(motion, features=features, output=features[:3], rotation=vkc.rotation)
+    assert start.isApprox(scene.relative_pose('obstacle', 'panda/ee'), 1e-12)
+    assert start_value(MinimumJerkSetpoint(vector, duration=1.0), features=features, output=vector,
+                       rotation=vkc.rotation) is vector

@@ -18,11 +18,16 @@ ROWS = '/app/itasc/T/Rows/state'
 TOPICS = {JOINTS: JointState, ROWS: TaskState}
 
 
+class _Context:
+    """The ROS context of the node (its process's LocalBus is keyed by it)."""
+
+
 class _Node:
     """What the feed uses of a node: timers and the graph (no publisher anywhere else)."""
 
     def __init__(self):
         self.subscriptions = []
+        self.context = _Context()
 
     def create_timer(self, period, callback):
         return callback
@@ -55,12 +60,14 @@ def _joints(i: int, n: int = 7) -> JointState:
 def feed():
     """A node, the output ports of TOPICS in this process, and a pipe (read fd, write fd)."""
     ports = {topic: _Port(topic) for topic in TOPICS}
+    node = _Node()
+    bus = LocalBus.of(node.context)
     for port in ports.values():
-        LocalBus.register(port)
+        bus.register(port)
     fds = os.pipe()
-    yield _Node(), ports, fds
+    yield node, ports, fds
     for port in ports.values():
-        LocalBus.unregister(port)
+        bus.unregister(port)
     for fd in fds:
         with contextlib.suppress(OSError):  # a test may have closed it
             os.close(fd)

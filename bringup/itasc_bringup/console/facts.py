@@ -44,7 +44,7 @@ def task_specs(model, *, namespace: str) -> list[TaskSpec]:
 
     from ..recording.topics import data_flow_topics
     topics = [t for t, kind in data_flow_topics(model, namespace=namespace).items() if kind == TASK_STATE]
-    composites = {path: composite for path, composite in walk(model, namespace.rsplit('/', 1)[0])}
+    composites = dict(walk(model, namespace.rsplit('/', 1)[0]))
     specs = []
     for topic in topics:
         owner = composites.get(topic.removesuffix('/Rows/state'))
@@ -81,11 +81,12 @@ class TaskTrace:
     error: array = field(default_factory=lambda: array('d'))
     distance: array = field(default_factory=lambda: array('d'))
 
-    def add(self, msg) -> None:
-        self.t.append(msg.stamp.sec + msg.stamp.nanosec * 1e-9)
-        self.error.append(msg.error_norm)
-        if self.spec.inequality and len(msg.output):
-            self.distance.append(msg.output[0])
+    def add(self, sample) -> None:
+        """One tick of the Task (an ``itasc_msgs/TaskState`` sample)."""
+        self.t.append(sample.t)
+        self.error.append(sample.error_norm)
+        if self.spec.inequality and len(sample.output):
+            self.distance.append(sample.output[0])
 
     def margin(self, distance: float) -> float:
         """How far ``distance`` is inside the bounds (negative: violated)."""
@@ -128,12 +129,13 @@ class RunFacts:
     def __init__(self, *, composites: dict[str, str], tasks: list[TaskSpec]) -> None:
         """``composites``: name -> namespace, parents first; ``tasks``: the model's Tasks."""
         self.composites = composites
-        self.states: dict[str, str] = {name: '-' for name in composites}
+        self.states: dict[str, str] = dict.fromkeys(composites, '-')
         self.transitions: list[Transition] = []
         self.tasks: dict[str, TaskTrace] = {spec.name: TaskTrace(spec) for spec in tasks}
         self.solver_status = ''
         self.running_since: float | None = None   # stamp of the first composite in Running
         self.tick_durations = array('d')
+        self.solve_times = array('d')
         self._last_tick = -math.inf
         self._tick_span: list[float] = []          # first and last tick (monotonic)
 
@@ -153,6 +155,7 @@ class RunFacts:
 
     def on_solver(self, msg) -> None:
         self.solver_status = msg.status
+        self.solve_times.append(msg.solve_time)
 
     def on_ticks(self, stamps, durations) -> None:
         """The Timer's latest ticks (monotonic start, duration; oldest first): those not seen yet
@@ -191,7 +194,16 @@ class RunFacts:
 
     def tick_percentile(self, q: float) -> float | None:
         """The ``q``-th percentile of the tick times (s), nearest rank; None without ticks."""
-        if not self.tick_durations:
-            return None
-        ordered = sorted(self.tick_durations)
-        return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]
+        return _percentile(self.tick_durations, q)
+
+    def solve_percentile(self, q: float) -> float | None:
+        """The ``q``-th percentile of the Solver's solve times (s); None without any."""
+        return _percentile(self.solve_times, q)
+
+
+def _percentile(values, q: float) -> float | None:
+    """The ``q``-th percentile of ``values``, nearest rank; None if there are none."""
+    if not values:
+        return None
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]

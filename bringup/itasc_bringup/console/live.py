@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Callable, TextIO
+from typing import Any, Callable, TextIO
 
 from rich.console import Console, Group
 from rich.live import Live
@@ -94,7 +94,7 @@ class LiveConsole:
     # -- the view -----------------------------------------------------------------------------
 
     def render(self) -> Group:
-        parts = [self._header(), self._tree()]
+        parts: list[Any] = [self._header(), self._tree()]
         if self._facts.tasks:
             parts.append(self._tasks())
         parts.append(self._timing())
@@ -135,6 +135,7 @@ class LiveConsole:
         table.add_column('now')
         table.add_column('', width=20)
         for name, trace in self._facts.tasks.items():
+            bar: ProgressBar | Text
             if trace.spec.inequality and trace.final_distance is not None:
                 margin = trace.margin(trace.final_distance)
                 widest = max(trace.margin(d) for d in trace.distance[-2000:]) or 1.0

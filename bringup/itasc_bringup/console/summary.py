@@ -25,7 +25,7 @@ def _finite(value: float | None) -> float | None:
 
 
 def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety: str | None,
-                  running_for: float | None, target_rate: float, recording: str | None,
+                  running_for: float | None, up_after: float | None, target_rate: float, recording: str | None,
                   trace: str | None, warnings: list[str]) -> dict[str, Any]:
     """The summary as plain data (what ``--summary-json`` writes)."""
     tasks = []
@@ -45,11 +45,13 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
         'exit_code': exit_code,
         'safety': safety,
         'running_for': running_for,
+        'up_after': up_after,
         'paths': {composite: [{'state': state, 'at': at} for state, at in path]
                   for composite, path in facts.paths().items()},  # parents first
         'tasks': tasks,
         'rate': {'target': target_rate, 'achieved': facts.achieved_rate(),
-                 'tick_p50': p50, 'tick_p99': p99, 'ticks': len(facts.tick_durations)},
+                 'tick_p50': p50, 'tick_p99': p99, 'ticks': len(facts.tick_durations),
+                 'solve_p50': facts.solve_percentile(50)},
         'solver_status': facts.solver_status or None,
         'recording': recording,
         'plot_command': f'itasc-plot {recording}' if recording else None,
@@ -85,7 +87,9 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(f'  {"tasks" if i == 0 else "":<6} {task["task"]:<{width}}  {what}')
     rate = summary['rate']
     lines.append(f'  {"rate":<6} {rate["achieved"]:.1f} Hz (target {rate["target"]:g}), '
-                 f'tick p50 {_ms(rate["tick_p50"])}, p99 {_ms(rate["tick_p99"])}')
+                 f'tick p50 {_ms(rate["tick_p50"])}, p99 {_ms(rate["tick_p99"])}, solver p50 {_ms(rate["solve_p50"])}')
+    if summary['up_after'] is not None:
+        lines.append(f'  {"up":<6} Running {summary["up_after"]:.2f} s after the start')
     if summary['recording']:
         lines.append(f'  {"record":<6} {summary["recording"]}  (plot it: {summary["plot_command"]})')
     if summary['trace']:

@@ -22,11 +22,12 @@ class TraceFile:
         from rclpy.logging import get_logging_directory
 
         stamp = datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
-        self.path = pathlib.Path(get_logging_directory()) / f'bootstrap_{app}_{stamp}_{os.getpid()}.log'
+        path = pathlib.Path(get_logging_directory()) / f'bootstrap_{app}_{stamp}_{os.getpid()}.log'
+        self.path: pathlib.Path | None = path
         self._file: TextIO | None = None
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(self.path, 'w', buffering=1, encoding='utf-8')
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = open(path, 'w', buffering=1, encoding='utf-8')
         except OSError:  # a read-only log directory costs the trace, not the run
             self.path = None
 

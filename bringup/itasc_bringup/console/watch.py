@@ -2,8 +2,10 @@
 Solver data): every composite's state topic, every Task's ``Rows/state`` and the Solver status,
 fed into :class:`~.facts.RunFacts`, every transition also to the run's trace and to the display.
 
-Task and Solver topics come from the model, so they are subscribed before the first tick, with a
-queue deep enough that the summary misses no tick the recording holds.
+Task and Solver topics come from the model, so they are observed before the first tick: tapped
+in this process, so that the tick pays no DDS send for the console (:mod:`..observe`), or read
+over DDS from another process with a queue deep enough that the summary misses no tick the
+recording holds.
 """
 
 from __future__ import annotations
@@ -16,6 +18,9 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from itasc_core.communication.qos import STATE_QOS
 from itasc_msgs.msg import CoordinatorState, SolverStatus, TaskState
 
+import itasc_core.itasc.entities.messages  # noqa: F401 - registers the samples the console reads
+
+from ..observe import Observer
 from .facts import RunFacts, Transition
 
 __all__ = ['Watch']
@@ -33,11 +38,12 @@ class Watch:
         self._on_transition = on_transition
         for namespace in facts.composites.values():
             node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
+        self.observer = Observer(node)
         for name, trace in facts.tasks.items():
-            node.create_subscription(TaskState, trace.spec.topic,
-                                     lambda msg, name=name: facts.on_task(name, msg), WATCH_QOS)
+            self.observer.samples(trace.spec.topic, TaskState, lambda _, sample, name=name: facts.on_task(name, sample),
+                                  qos=WATCH_QOS)
         for topic in solver_topics:
-            node.create_subscription(SolverStatus, topic, facts.on_solver, WATCH_QOS)
+            self.observer.samples(topic, SolverStatus, lambda _, sample: facts.on_solver(sample), qos=WATCH_QOS)
 
     def _on_state(self, msg: CoordinatorState) -> None:
         self._on_transition(self.facts.on_state(msg))

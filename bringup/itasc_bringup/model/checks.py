@@ -19,19 +19,21 @@ from pathlib import Path
 from typing import Any
 
 import pinocchio as pin
+from itasc_core.communication.event_names import (COMPOSE_FAILED, COMPOSED, JOINTS_MISSING, SOLVER_STATUSES, event,
+                                                  solver_status)
 from itasc_core.composition.checks import check_outside_event
 from itasc_core.composition.loader import MAX_BYTES, ModelError, format_loc, source_of
 from itasc_core.itasc.robot import Robot as RobotModel
 
 from .locations import config_dirs
-from .schema import Application, Program
+from .schema import Application, Program, Task
 
 __all__ = ['check', 'load_robot', 'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED', 'VECTORS',
            'MAX_URDF_BYTES']
 
 Loc = tuple[Any, ...]
 
-SOLVER_EVENTS = ('e_solver_ok', 'e_solver_singular', 'e_solver_infeasible', 'e_solver_saturated')
+SOLVER_EVENTS = tuple(solver_status(s) for s in SOLVER_STATUSES)
 #: What a Monitor may watch of a Task (TaskState fields, and the setpoint's progress) and of the Solver.
 TASK_QUANTITIES = ('output', 'setpoint', 'error', 'error_norm', 'progress')
 SOLVER_QUANTITIES = ('solve_time', 'min_singular_value', 'damping')
@@ -97,8 +99,9 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
     _monitors(where, program)
     _configurations(where, program)
     _outside_events(where, app)
+    _composition(where, program, [j for js in joints.values() for j in js])
     _running(where, program, outside=[e.event for e in app.events])
-    _solver(where, program, [j for js in joints.values() for j in js])
+    _solver(where, ('program', 'solver'), program.solver, [j for js in joints.values() for j in js])
     _drivers(where, app, joints)
     _sensors(where, app)
     return resolved
@@ -171,24 +174,31 @@ def frames_of(program: Program, models: dict[str, RobotModel]) -> dict[str, list
 
 # -- tasks ----------------------------------------------------------------------------------------------
 
+def task_locations(program: Program) -> list[tuple[Loc, Task]]:
+    """Every Task of the program and of its composition steps, with where it is in the model."""
+    return [(('program', 'tasks', i), t) for i, t in enumerate(program.tasks)] + \
+        [(('program', 'composition', name, 'add', i), t) for name, step in program.composition.items()
+         for i, t in enumerate(step.add)]
+
+
 def _tasks(where: _Where, program: Program, *, robots: dict, models: dict[str, RobotModel],
            joints: list[str]) -> None:
-    _unique(where, [('program', 'tasks', i, 'name') for i in range(len(program.tasks))],
-            [t.name for t in program.tasks], 'task name', reserved=RESERVED + tuple(f'Robot_{r}' for r in robots))
+    located = task_locations(program)
+    _unique(where, [loc + ('name',) for loc, _ in located], [t.name for _, t in located], 'task name',
+            reserved=RESERVED + tuple(f'Robot_{r}' for r in robots))
     frames = frames_of(program, models)
-    for i, task in enumerate(program.tasks):
-        loc = ('program', 'tasks', i)
+    for loc, task in located:
         for end in ('o1', 'o2'):
-            address = getattr(task, end)
+            address = task.chain.get(end)
             if address is None:
                 continue
             owner, _, frame = address.partition('/')
             if owner not in frames or frame not in frames[owner]:
                 known = [f'{o}/{f}' if f else o for o, fs in frames.items() for f in fs if f != 'origin']
                 raise where.error(loc + (end,), f"unknown frame '{address}'; frames: {known}")
-        if task.o1 is not None and task.o1 == task.o2:
+        if task.chain.get('o1') is not None and task.chain.get('o1') == task.chain.get('o2'):
             raise where.error(loc + ('o2',), 'o1 and o2 must be different frames')
-        for k, joint in enumerate(task.joints or ()):
+        for k, joint in enumerate(task.chain.get('joints') or ()):
             if joint not in joints:
                 raise where.error(loc + ('joints', k), f"unknown joint '{joint}'; joints: {joints}")
 
@@ -227,8 +237,8 @@ def _index(where: _Where, loc: Loc, watch: str, values: tuple[str, ...] | None) 
 
 
 def _configurations(where: _Where, program: Program) -> None:
-    tasks = {t.name: t for t in program.tasks}
-    monitors = {m.name for m in program.monitors}
+    tasks = {t.name: t for t in program.every_task}
+    monitors = {m.name: m for m in program.monitors}
     for name, targets in program.configurations.items():
         for target, settings in targets.items():
             loc = ('program', 'configurations', name, target)
@@ -243,6 +253,9 @@ def _configurations(where: _Where, program: Program) -> None:
             elif target in monitors:
                 if settings.threshold is None:
                     raise where.error(loc, "a configuration sets a monitor's threshold, not a controller")
+                if 'threshold' not in monitors[target].condition_parameters:
+                    raise where.error(loc + ('threshold',), f"monitor '{target}' ({monitors[target].condition}) has "
+                                      'no threshold')
             else:
                 raise where.error(loc, f"unknown task or monitor '{target}'; tasks: {sorted(tasks)}, "
                                   f'monitors: {sorted(monitors)}')
@@ -256,7 +269,9 @@ def raised_events(program: Program, robots: Iterable[str], outside: Iterable[str
     """Every event raised inside the Constraint-based program that its Coordinator can hear
     (``outside``: those the application's outside events raise in it)."""
     events = {m.event for m in program.monitors} | set(SOLVER_EVENTS) | set(outside)
-    events |= {f'e_{r}_joints_missing' for r in robots}
+    events |= {event(r, JOINTS_MISSING) for r in robots}
+    composers = [program.name] * bool(program.composition) + [t for s in program.composition.values() for t in s.swap]
+    events |= {event(c, answer) for c in composers for answer in (COMPOSED, COMPOSE_FAILED)}
     if program.running is not None:
         events |= {e for s in program.running.states.values() for e in s.raise_}
     return events
@@ -269,9 +284,9 @@ def _running(where: _Where, program: Program, *, outside: Iterable[str] = ()) ->
     states = sorted(fsm.states)
     if fsm.initial not in fsm.states:
         raise where.error(('program', 'running', 'initial'), f"unknown state '{fsm.initial}'; states: {states}")
-    known = {'tasks': {t.name for t in program.tasks}, 'monitors': {m.name for m in program.monitors},
-             'configure': set(program.configurations)}
-    what = {'tasks': 'task', 'monitors': 'monitor', 'configure': 'configuration'}
+    known = {'tasks': {t.name for t in program.every_task}, 'monitors': {m.name for m in program.monitors},
+             'configure': set(program.configurations), 'compose': set(program.composition)}
+    what = {'tasks': 'task', 'monitors': 'monitor', 'configure': 'configuration', 'compose': 'composition step'}
     for name, state in fsm.states.items():
         for field, names in known.items():
             for k, item in enumerate(getattr(state, field) or ()):
@@ -284,23 +299,52 @@ def _running(where: _Where, program: Program, *, outside: Iterable[str] = ()) ->
         for end, key in ((transition.source, 'from'), (transition.target, 'to')):
             if end not in fsm.states:
                 raise where.error(loc + (key,), f"unknown state '{end}'; states: {states}")
-        for k, event in enumerate(transition.when):
-            if event not in events:
-                raise where.error(loc + ('when', k), f"event '{event}' is raised by nobody; raised: {sorted(events)}")
+        for k, name in enumerate(transition.when):
+            if name not in events:
+                raise where.error(loc + ('when', k), f"event '{name}' is raised by nobody; raised: {sorted(events)}")
+
+
+# -- composition steps ----------------------------------------------------------------------------------------
+
+def _composition(where: _Where, program: Program, joints: list[str]) -> None:
+    """What a composition step names exists in some structure the program can have (which Tasks
+    run when it runs depends on the steps before it: the Composer checks that then), a swapped
+    setpoint fits its Task, and no step removes a Task a Monitor watches (that would never fit)."""
+    tasks = {t.name: t for t in program.every_task}
+    watched = {m.watch.partition('.')[0]: m.name for m in program.monitors}
+    for name, step in program.composition.items():
+        at = ('program', 'composition', name)
+        for k, task in enumerate(step.remove):
+            if task not in tasks:
+                raise where.error(at + ('remove', k), f"unknown task '{task}'; tasks: {sorted(tasks)}")
+            if task in watched:
+                raise where.error(at + ('remove', k), f"task '{task}' cannot be removed: Monitor "
+                                  f"'{watched[task]}' watches it")
+        for task, swap in step.swap.items():
+            if task not in tasks:
+                raise where.error(at + ('swap', task), f"unknown task '{task}'; tasks: {sorted(tasks)}")
+            replaced = tasks[task].model_dump(by_alias=True)
+            replaced.update({key: getattr(swap, key).model_dump(by_alias=True)
+                             for key in ('controller', 'setpoint') if getattr(swap, key) is not None})
+            try:
+                type(tasks[task]).model_validate(replaced)  # the same task type's section
+            except ValueError as err:
+                message = err.errors()[0]['msg'] if hasattr(err, 'errors') else str(err)
+                raise where.error(at + ('swap', task), f"does not fit task '{task}': {message}") from None
+        if step.solver is not None:
+            _solver(where, at + ('solver',), step.solver, joints)
 
 
 # -- solver, drivers, sensors ---------------------------------------------------------------------------------
 
-def _solver(where: _Where, program: Program, joints: list[str]) -> None:
-    solver = program.solver
+def _solver(where: _Where, loc: Loc, solver, joints: list[str]) -> None:
     for joint in solver.joint_weights:
         if joint not in joints:
-            raise where.error(('program', 'solver', 'joint_weights', joint),
-                              f"unknown joint '{joint}'; joints: {joints}")
+            raise where.error(loc + ('joint_weights', joint), f"unknown joint '{joint}'; joints: {joints}")
     if solver.kind == 'qp':
         import qpsolvers
         if solver.backend not in qpsolvers.available_solvers:
-            raise where.error(('program', 'solver', 'backend'), f"QP backend '{solver.backend}' is not "
+            raise where.error(loc + ('backend',), f"QP backend '{solver.backend}' is not "
                               f'available; available: {qpsolvers.available_solvers}')
 
 

@@ -3,6 +3,9 @@
     itasc-model schema [--out FILE]     the JSON Schema of an application model file
     itasc-model check MODEL...          validate models (names or paths), includes resolved
     itasc-model docs [--out FILE]       write the model reference (default docs/model.md)
+    itasc-model configuration DUMP --name NAME
+                                        a named configuration from `ros2 param dump` of running
+                                        entities (CC, Rows, Monitors), to paste into the model
 
 ``check`` exits 2 at the first wrong model, with the message the bootstrap would give (file, path
 inside it, what was expected); nothing is started (no node, no DDS participant).
@@ -35,6 +38,20 @@ def _check(models: list[str]) -> int:
     return 0
 
 
+def _configuration(dump: str, name: str) -> int:
+    import yaml
+    from pydantic import ValidationError
+
+    from .dump import configuration_of
+    try:
+        configuration = configuration_of(yaml.safe_load(Path(dump).read_text()))
+    except (OSError, yaml.YAMLError, ValueError, ValidationError) as err:
+        print(f'error: {dump}: {err}', file=sys.stderr)
+        return 2
+    sys.stdout.write(yaml.safe_dump({'configurations': {name: configuration}}, sort_keys=False))
+    return 0
+
+
 def _write(text: str, out: str | None) -> None:
     if out is None:
         sys.stdout.write(text)
@@ -54,10 +71,16 @@ def main(argv: list[str] | None = None) -> int:
     check.add_argument('models', nargs='+', metavar='MODEL', help='application name or model file')
     docs = commands.add_parser('docs', help='write the model reference (Markdown)')
     docs.add_argument('--out', default='docs/model.md', help='where (default: %(default)s; - for stdout)')
+    configuration = commands.add_parser('configuration',
+                                        help='a named configuration from `ros2 param dump` of running entities')
+    configuration.add_argument('dump', metavar='DUMP', help='the YAML file ros2 param dump wrote')
+    configuration.add_argument('--name', required=True, help='the configuration\'s name')
     args = parser.parse_args(argv)
 
     if args.command == 'check':
         return _check(args.models)
+    if args.command == 'configuration':
+        return _configuration(args.dump, args.name)
     from .locations import config_dirs
     from .reference import json_schema, markdown
     if args.command == 'schema':

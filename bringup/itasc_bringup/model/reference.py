@@ -3,7 +3,8 @@ the JSON Schema that editors check model files with, and the Markdown reference 
 (every section, field, kind, default and unit, with a shipped example per kind).
 
 Both come from the pydantic models alone: a field documented there (its docstring, its
-constraints) is documented here; nothing is written twice.
+constraints) is documented here; nothing is written twice. Kinds that other installed packages
+register (task types, conditions) are left out: this is the reference of this project's model.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from typing import Any
 
 import yaml
 from pydantic import BaseModel
+
+from itasc_core.computation.conditions import CONDITIONS
+from itasc_tasks.task_types import TASK_TYPES
 
 from .load import KEY
 from .schema import Application
@@ -44,6 +48,9 @@ def json_schema() -> dict[str, Any]:
     defs = inner.pop('$defs')
     defs['Application'] = inner
     defs['Include'] = _INCLUDE
+    plugins = {f'{kind.__name__}{suffix}' for registry, suffix in ((TASK_TYPES, 'Task'), (CONDITIONS, 'Monitor'))
+               for name, kind in registry.kinds().items() if name in registry.plugins()}
+    defs = {name: _without(d, plugins) for name, d in defs.items() if name not in plugins}
     schema = {
         '$schema': 'https://json-schema.org/draft/2020-12/schema',
         'title': 'iTaSC application model',
@@ -55,6 +62,16 @@ def json_schema() -> dict[str, Any]:
     }
     json.dumps(schema, allow_nan=False)  # raises if anything non-finite is left
     return schema
+
+
+def _without(node: Any, models: set[str]) -> Any:
+    """``node`` without references to ``models`` (the variants of other packages' kinds)."""
+    if isinstance(node, dict):
+        return {k: _without(v, models) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_without(v, models) for v in node
+                if not (isinstance(v, dict) and v.get('$ref', '').rsplit('/', 1)[-1] in models)]
+    return node
 
 
 def _finite(node: Any) -> Any:

@@ -12,27 +12,35 @@ small YAML DSL, validated with pydantic (unknown fields refused).
 
 Any mapping may be replaced by ``{include: file.yaml}`` (a robot, task or program reused across
 applications). Cross references (links, frames, events, names) are checked by :mod:`.checks`.
+
+A section that configures one entity is that entity's parameter model (one source for the
+entity's validation, this schema and its ROS parameters): a placement and an object's motion (the
+Scene's), a controller (the Constraint Controller's gains), a setpoint (the Setpoint Generator's),
+the solver's settings (the Solver's).
 """
 
 from __future__ import annotations
 
-import math
 import re
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
-from itasc_core.composition.model import OutsideEventModel
+from itasc_core.composition.model import OutsideEventModel, RunningStateModel, RunningTransitionModel
+from itasc_core.computation.conditions import CONDITIONS
+from itasc_core.computation.parameters import partial
+from itasc_core.kinds import variants
+from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
+from itasc_core.itasc.entities.solver_entity import SolverSettings
+from itasc_tasks.entities.constraint_controller_entity import Controller
+from itasc_tasks.entities.setpoint_generator_entity import Setpoint
+from itasc_tasks.task_types import TASK_TYPES
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 __all__ = ['Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task', 'Controller',
-           'Setpoint', 'Placement', 'Driver', 'Sensor', 'Solver', 'Monitor', 'ControllerSettings', 'Settings',
-           'State', 'Transition', 'Running', 'FEATURES']
+           'Setpoint', 'Placement', 'ObjectMotion', 'Driver', 'Sensor', 'Solver', 'Monitor', 'ControllerSettings',
+           'Settings', 'State', 'Transition', 'Running', 'TaskSwap', 'CompositionStep', 'TaskBase', 'MonitorBase']
 
 NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
-#: Feature coordinates per chain type (joint chains: the joints).
-FEATURES = {'cartesian': ('x', 'y', 'z', 'rx', 'ry', 'rz'), 'distance': ('distance',)}
-
-Vec3 = tuple[float, float, float]
 
 
 class _Model(BaseModel):
@@ -42,15 +50,6 @@ class _Model(BaseModel):
 def _as_list(value: Any) -> Any:
     """Accept a scalar where a list is expected (``weights: 1.0``, ``on: e_done``)."""
     return [value] if isinstance(value, (int, float, str)) and not isinstance(value, bool) else value
-
-
-class Placement(_Model):
-    """A pose: translation [m] and roll-pitch-yaw [rad] (URDF convention)."""
-
-    xyz: Vec3 = (0.0, 0.0, 0.0)
-    """Translation [m]."""
-    rpy: Vec3 = (0.0, 0.0, 0.0)
-    """Roll, pitch, yaw [rad] (URDF convention)."""
 
 
 # -- Constraint-based program: robots and objects --------------------------------------------------
@@ -103,15 +102,6 @@ class ObjectFrame(Placement):
     """The frame's name: Tasks refer to it as ``<object>/<name>``."""
 
 
-class ObjectMotion(_Model):
-    """A moving object's trajectory: oscillating about its placement, per axis."""
-
-    amplitude: tuple[float, float, float]
-    """Amplitude per axis x, y, z [m]."""
-    period: float = Field(gt=0)
-    """Period of the oscillation [s]."""
-
-
 class Object(Placement):
     """An object without controllable DOF, at ``xyz``/``rpy``, moving along ``motion``, or where
     its Sensor says. ``size`` [m], the diameter of the sphere that shows it (an obstacle) in RViz,
@@ -129,89 +119,18 @@ class Object(Placement):
 
 # -- Task ----------------------------------------------------------------------------------------
 
-class Controller(_Model):
-    """A Constraint Controller: P or PID with feed-forward and saturation (paper §4.1 "CC")."""
-
-    kind: Literal['p', 'pid'] = 'pid'
-    """``p``: proportional; ``pid``: proportional, integral, derivative."""
-    kp: float = Field(default=1.0, ge=0)
-    """Proportional gain [1/s]: desired output velocity per unit of error."""
-    ki: float = Field(default=0.0, ge=0)
-    """Integral gain [1/s²]."""
-    kd: float = Field(default=0.0, ge=0)
-    """Derivative gain (dimensionless)."""
-    max_output: float = Field(default=math.inf, gt=0)
-    """Saturation of the desired output velocity [unit of the output per s]; ``.inf``: none."""
-
-
-class Setpoint(_Model):
-    """A Setpoint Generator (paper §4.1). ``value`` is in output space; a Cartesian Task may give a
-    ``pose`` of o2 in o1 instead. ``hold`` keeps the output where the Task found it."""
-
-    kind: Literal['hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic']
-    """How the setpoint moves: ``hold`` where the Task found it, ``fixed``, ``minimum_jerk`` or ``trapezoidal`` towards ``value``/``pose``, ``periodic`` (a sine), or read from a ``topic``."""
-    value: list[float] | None = None
-    """The target in output space, one number per output [m, rad or the output's unit]."""
-    pose: Placement | None = None
-    """A Cartesian Task's target: the pose of o2 in o1."""
-    duration: float = Field(default=0.0, ge=0)
-    """Time to reach the target [s] (``minimum_jerk``; 0: at once)."""
-    max_velocity: list[float] | None = None
-    """Per output [unit/s] (``trapezoidal``)."""
-    max_acceleration: list[float] | None = None
-    """Per output [unit/s²] (``trapezoidal``)."""
-    amplitude: list[float] | None = None
-    """Per output (``periodic``)."""
-    period: float | None = Field(default=None, gt=0)
-    """Period [s] (``periodic``)."""
-    offset: list[float] | None = None
-    """Centre per output (``periodic``; omitted: where the Task starts)."""
-    phase: list[float] | None = None
-    """Phase per output [rad] (``periodic``)."""
-    topic: str | None = None
-    """Topic of ``std_msgs/Float64MultiArray`` setpoints, one value per output (``topic``)."""
-
-    _list = field_validator('value', 'max_velocity', 'max_acceleration', 'amplitude', 'offset', 'phase',
-                            mode='before')(_as_list)
-
-    @field_validator('max_velocity', 'max_acceleration')
-    @classmethod
-    def _positive(cls, value: list[float] | None) -> list[float] | None:
-        if value is not None and any(v <= 0 for v in value):
-            raise ValueError('must be > 0')
-        return value
-
-    @model_validator(mode='after')
-    def _complete(self) -> 'Setpoint':
-        if self.kind in ('fixed', 'minimum_jerk', 'trapezoidal') and (self.value is None) == (self.pose is None):
-            raise ValueError(f"setpoint '{self.kind}' needs exactly one of value or pose")
-        if self.kind == 'periodic' and (self.amplitude is None or self.period is None):
-            raise ValueError("setpoint 'periodic' needs amplitude and period")
-        if self.kind == 'topic' and not self.topic:
-            raise ValueError("setpoint 'topic' needs a topic")
-        return self
-
-
-class Task(_Model):
-    """A Task (paper §4.2): a virtual kinematic chain of ``type`` between object frames ``o1`` and
-    ``o2`` (``robot/frame``, ``object/frame``, ``object`` or ``world``) or over ``joints``, the
-    ``outputs`` it constrains, how (controller, setpoint), how much (weights) and with which
-    ``priority`` (0 highest); an ``inequality`` keeps the outputs within ``d_min``/``d_max``."""
+class TaskBase(_Model):
+    """A Task (paper §4.2): a virtual kinematic chain of ``type`` (a registered task type: its fields
+    say between which object frames, ``o1`` and ``o2``, or over which ``joints``), the ``outputs`` it
+    constrains, how (controller, setpoint), how much (weights) and with which ``priority`` (0
+    highest); an ``inequality`` keeps the outputs within ``d_min``/``d_max``."""
 
     name: str = Field(pattern=NAME)
     """The Task's name: its composite, topics (``<program>/<name>/...``) and events (``e_<name>_...``)."""
-    type: Literal['cartesian', 'distance', 'joint']
-    """The virtual kinematic chain: ``cartesian`` (pose of o2 in o1: x, y, z, rx, ry, rz), ``distance`` (between the origins of o1 and o2) or ``joint`` (joint positions)."""
-    o1: str | None = None
-    """First object frame: ``<robot>/<frame>``, ``<object>/<frame>``, ``<object>`` or ``world``."""
-    o2: str | None = None
-    """Second object frame, as o1."""
-    joints: list[str] | None = None
-    """The joints of a ``joint`` Task."""
+    type: str
+    """The virtual kinematic chain, a registered task type."""
     outputs: list[str] | None = None
     """The features constrained (omitted: all of the chain's)."""
-    coordinates: Literal['xyz_log3', 'log6'] = 'xyz_log3'
-    """Orientation coordinates of a ``cartesian`` chain: ``xyz_log3`` (translation and rotation log) or ``log6`` (SE(3) log)."""
     controller: Controller = Field(default_factory=Controller)
     """The Constraint Controller."""
     setpoint: Setpoint | None = None
@@ -241,8 +160,9 @@ class Task(_Model):
     def _bounds(cls, value: list[float] | None, info: ValidationInfo) -> list[float] | None:
         if value is None:
             return value
-        if info.data.get('type') == 'distance' and any(v < 0 for v in value):
-            raise ValueError(f'a distance is never negative: {info.field_name} must be >= 0 (got {value})')
+        kind = str(info.data.get('type'))
+        if kind in TASK_TYPES and TASK_TYPES[kind].nonnegative and any(v < 0 for v in value):
+            raise ValueError(f'a {kind} is never negative: {info.field_name} must be >= 0 (got {value})')
         low = info.data.get('d_min') if info.field_name == 'd_max' else None
         n = max(len(value), len(low or ()))
         if low is not None and not all(lo < hi for lo, hi in zip(low * n if len(low) == 1 else low,
@@ -251,22 +171,25 @@ class Task(_Model):
         return value
 
     @property
+    def kind(self) -> Any:
+        """Its task type (:class:`itasc_tasks.task_types.TaskType`)."""
+        return TASK_TYPES[self.type]
+
+    @property
     def features(self) -> tuple[str, ...]:
-        return FEATURES.get(self.type) or tuple(self.joints or ())
+        return self.kind.features(self)
 
     @property
     def selected(self) -> tuple[str, ...]:
         return tuple(self.outputs) if self.outputs else self.features
 
+    @property
+    def chain(self) -> dict[str, Any]:
+        """The parameters of its chain (its task type's fields)."""
+        return {key: getattr(self, key) for key in self.kind.Parameters.model_fields}
+
     @model_validator(mode='after')
-    def _consistent(self) -> 'Task':
-        if self.type == 'joint':
-            if not self.joints:
-                raise ValueError("a 'joint' task needs joints")
-            if self.o1 or self.o2:
-                raise ValueError("a 'joint' task has joints, not o1/o2")
-        elif not (self.o1 and self.o2):
-            raise ValueError(f"a '{self.type}' task needs both o1 and o2")
+    def _consistent(self) -> 'TaskBase':
         unknown = [o for o in self.outputs or () if o not in self.features]
         if unknown:
             raise ValueError(f'outputs {unknown} are not features of a {self.type} chain: {list(self.features)}')
@@ -287,25 +210,25 @@ class Task(_Model):
         return self
 
     def _check_setpoint(self, sp: Setpoint, m: int) -> None:
-        if sp.pose is not None and self.type != 'cartesian':
-            raise ValueError('a setpoint pose needs a cartesian task; give a value')
+        if sp.pose is not None and not self.kind.pose_setpoints:
+            raise ValueError(f'a setpoint pose needs a task whose chain is a pose (not {self.type}); give a value')
         for key in ('value', 'amplitude', 'offset', 'phase'):
             v = getattr(sp, key)
             if v is not None and len(v) not in ((1, m) if key != 'value' else (m,)):
                 raise ValueError(f'setpoint {key} has {len(v)} values for {m} outputs {list(self.selected)}')
 
 
+#: A Task: the common fields and those of its task type (one section per registered task type).
+if TYPE_CHECKING:
+    Task = TaskBase
+else:
+    Task = variants(TaskBase, TASK_TYPES, field='type', suffix='Task')
+
+
 # -- Configurations, Monitors, Running sub-FSM -------------------------------------------------------------
 
-class ControllerSettings(_Model):
-    kp: float | None = Field(default=None, ge=0)
-    """Proportional gain [1/s]."""
-    ki: float | None = Field(default=None, ge=0)
-    """Integral gain [1/s²]."""
-    kd: float | None = Field(default=None, ge=0)
-    """Derivative gain."""
-    max_output: float | None = Field(default=None, gt=0)
-    """Saturation of the desired output velocity."""
+ControllerSettings = partial(Controller, name='ControllerSettings', exclude=('kind',),
+                             doc='New gains of a Task\'s Constraint Controller (omitted: unchanged).')
 
 
 class Settings(_Model):
@@ -313,7 +236,7 @@ class Settings(_Model):
     priorities"): a Task's ``controller`` gains, its row ``weights`` and its ``priority`` level, or
     a Monitor's ``threshold``."""
 
-    controller: ControllerSettings | None = None
+    controller: ControllerSettings | None = None  # type: ignore[valid-type]  # built from Controller
     """New controller gains of the Task."""
     weights: list[float] | None = None
     """New weights of the Task's outputs."""
@@ -342,48 +265,52 @@ class Settings(_Model):
         return self
 
 
-class Monitor(_Model):
-    """A Monitor (paper §4.1): raises ``event`` when ``condition`` starts to hold on ``watch``:
-    ``<Task>.<output|setpoint|error|error_norm|progress>[index]`` or
-    ``Solver.<solve_time|min_singular_value|damping>``."""
+class MonitorBase(_Model):
+    """A Monitor (paper §4.1): raises ``event`` when ``condition`` (a registered condition, with its
+    own fields) starts to hold on ``watch``: ``<Task>.<output|setpoint|error|error_norm|progress>[index]``
+    or ``Solver.<solve_time|min_singular_value|damping>``."""
 
     name: str = Field(pattern=NAME)
     """The Monitor's name (a Running state lists the Monitors it runs)."""
     watch: str = Field(pattern=r'^[A-Za-z][A-Za-z0-9_]*\.[a-z_]+(\[[0-9]+\])?$')
-    """What it watches: ``<Task>.<output|setpoint|error|error_norm|progress>[index]`` or ``Solver.<solve_time|min_singular_value|damping>``."""
-    condition: Literal['above', 'below', 'outside', 'stale', 'nonfinite']
-    """When it fires: the value goes ``above`` or ``below`` the threshold, leaves the ``band`` (``outside``), stops arriving for ``timeout`` (``stale``), or is not finite (``nonfinite``)."""
-    threshold: float = 0.0
-    """The threshold of ``above``/``below``, in the watched value's unit."""
-    band: tuple[float, float] | None = None
-    """The band [low, high] of ``outside``."""
-    timeout: float = Field(default=0.5, gt=0)
-    """The silence that makes a value ``stale`` [s]."""
+    """What it watches: ``<Task>.<output|setpoint|error|error_norm|progress>[index]`` or
+    ``Solver.<solve_time|min_singular_value|damping>``."""
+    condition: str
+    """When it fires: a registered condition."""
     event: str = Field(pattern=EVENT)
     """The event it raises once the condition starts to hold."""
     enabled: bool = True
     """Whether it runs from the start (a Running state may switch it)."""
 
-    @model_validator(mode='after')
-    def _band(self) -> 'Monitor':
-        if self.condition == 'outside' and self.band is None:
-            raise ValueError("condition 'outside' needs band: [low, high]")
-        return self
+    @property
+    def condition_parameters(self) -> dict[str, Any]:
+        """The parameters of its condition (its condition's fields)."""
+        return {key: getattr(self, key) for key in CONDITIONS[self.condition].Parameters.model_fields}
 
 
-class State(_Model):
-    """A state of the Running sub-FSM: on entry it makes ``tasks`` the active Tasks and
-    ``monitors`` the active Monitors (omitted: unchanged), applies ``configure`` and raises
-    ``raise``."""
+#: A Monitor: the common fields and those of its condition (one section per registered condition).
+if TYPE_CHECKING:
+    Monitor = MonitorBase
+else:
+    Monitor = variants(MonitorBase, CONDITIONS, field='condition', suffix='Monitor')
 
+
+class State(_Model, RunningStateModel):
+    """A state of the Running sub-FSM: on entry it runs the composition steps ``compose``, makes
+    ``tasks`` the active Tasks and ``monitors`` the active Monitors (omitted: unchanged), applies
+    ``configure`` and raises ``raise`` (a state of the composition model's Running sub-FSM, with what
+    the program switches)."""
+
+    model_config = ConfigDict(frozen=False)
+
+    compose: list[str] = Field(default_factory=list)
+    """Composition steps of the program run on entry (``composition``), in order."""
     tasks: list[str] | None = None
     """The Tasks active in this state (omitted: the current ones stay)."""
     monitors: list[str] | None = None
     """The Monitors active in this state (omitted: the current ones stay)."""
     configure: list[str] = Field(default_factory=list)
     """Named configurations applied on entry."""
-    raise_: list[str] = Field(default_factory=list, alias='raise')
-    """Events raised on entry."""
 
     @field_validator('raise_')
     @classmethod
@@ -394,15 +321,8 @@ class State(_Model):
         return value
 
 
-class Transition(_Model):
-    source: str = Field(alias='from')
-    """The state it leaves."""
-    target: str = Field(alias='to')
-    """The state it enters."""
-    when: list[str] = Field(min_length=1)
-    """The events that trigger it (any of them)."""
-
-    _list = field_validator('when', mode='before')(_as_list)
+#: A transition of the Running sub-FSM: the composition model's.
+Transition = RunningTransitionModel
 
 
 class Running(_Model):
@@ -416,23 +336,13 @@ class Running(_Model):
     """The transitions between them."""
 
 
-class Solver(_Model):
+class Solver(SolverSettings):
     """``wdls`` (weighted damped least squares, priorities by null-space projection; ``damping``
     the maximum damping near singularities) or ``qp`` (cascade of QPs with inequalities; ``backend``
     any qpsolvers solver; ``regularization`` the weight of the joint-velocity norm)."""
 
-    kind: Literal['wdls', 'qp'] = 'wdls'
-    """``wdls``: weighted damped least squares, priorities by null-space projection; ``qp``: a cascade of quadratic programs, inequalities included."""
-    backend: str = 'daqp'
-    """The QP solver (``qp``): any solver ``qpsolvers`` has installed."""
     joint_weights: dict[str, float] = Field(default_factory=dict)
     """Weight of each joint's velocity by joint name (default 1): a heavier joint moves less."""
-    damping: float = Field(default=0.1, ge=0)
-    """Largest damping near singularities (``wdls``) [rad/s]."""
-    regularization: float = Field(default=1e-6, gt=0)
-    """Weight of the joint-velocity norm (``qp``)."""
-    position_limit_gain: float = Field(default=0.5, gt=0, le=1)
-    """Fraction of the distance to a joint's position limit it may close in one second (0 < gain ≤ 1)."""
 
     @field_validator('joint_weights')
     @classmethod
@@ -440,6 +350,48 @@ class Solver(_Model):
         if any(w <= 0 for w in value.values()):
             raise ValueError('joint weights must be > 0')
         return value
+
+
+class TaskSwap(_Model):
+    """What a composition step replaces in a running Task: its Constraint Controller and/or its
+    Setpoint Generator (the chain, outputs, weights and priority stay). The new one starts from
+    where the Task is: a setpoint motion from the current output, a controller afresh."""
+
+    controller: Controller | None = None
+    """The new Constraint Controller."""
+    setpoint: Setpoint | None = None
+    """The new Setpoint Generator (an equality Task)."""
+
+    @model_validator(mode='after')
+    def _something(self) -> 'TaskSwap':
+        if self.controller is None and self.setpoint is None:
+            raise ValueError('swap a controller, a setpoint, or both')
+        return self
+
+
+class CompositionStep(_Model):
+    """A composition step (paper §3.1: run-time re-composition): a change of the program's
+    structure while it runs. Each composite it changes changes between two ticks, all of its part
+    or nothing: first each swapped Task (``e_<Task>_composed``), then, if all of them did, the
+    program (Tasks added, removed, the Solver swapped: ``e_<program>_composed``); a part that does
+    not fit changes nothing of its composite, and ``e_<program>_compose_failed`` names why. A
+    state of the Running sub-FSM runs it on entry (``compose``); an operator with
+    ``<program ns>/coordinator/compose``."""
+
+    add: list[Task] = Field(default_factory=list)
+    """Tasks to add (each goes through its life-cycle until Running, then computes)."""
+    remove: list[str] = Field(default_factory=list)
+    """Tasks to remove (stopped in order, then gone from the ROS graph)."""
+    swap: dict[str, TaskSwap] = Field(default_factory=dict)
+    """Controllers and setpoint generators to replace, by Task."""
+    solver: Solver | None = None
+    """A Solver to replace the running one (e.g. ``wdls`` for ``qp``)."""
+
+    @model_validator(mode='after')
+    def _something(self) -> 'CompositionStep':
+        if not (self.add or self.remove or self.swap or self.solver):
+            raise ValueError('a composition step adds, removes or swaps something')
+        return self
 
 
 class Program(_Model):
@@ -463,6 +415,9 @@ class Program(_Model):
     """The Monitors."""
     running: Running | None = None
     """The Running sub-FSM (omitted: every Task runs from the start)."""
+    composition: dict[str, CompositionStep] = Field(default_factory=dict)
+    """Named composition steps: Tasks added, removed, controllers, setpoints and the Solver swapped
+    while the program runs."""
 
     @field_validator('configurations')
     @classmethod
@@ -471,6 +426,19 @@ class Program(_Model):
         if bad:
             raise ValueError(f'configuration names must match {NAME}: {bad}')
         return value
+
+    @field_validator('composition')
+    @classmethod
+    def _step_names(cls, value: dict[str, Any]) -> dict[str, Any]:
+        bad = [n for n in value if not re.match(NAME, n) or n == 'failed']
+        if bad:
+            raise ValueError(f"composition step names must match {NAME} and not be 'failed': {bad}")
+        return value
+
+    @property
+    def every_task(self) -> list[Task]:
+        """The Tasks, and those composition steps add."""
+        return [*self.tasks, *(t for step in self.composition.values() for t in step.add)]
 
 
 # -- Application ------------------------------------------------------------------------------------
@@ -491,7 +459,8 @@ class Driver(_Model):
     controller: str | None = Field(default=None, pattern=r'^[A-Za-z0-9_/]+$')
     """The ros2_control controller that takes the commands."""
     interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
-    """What the controller takes: ``velocity`` or ``position`` (``std_msgs/Float64MultiArray``), or ``trajectory`` (``trajectory_msgs/JointTrajectory``)."""
+    """What the controller takes: ``velocity`` or ``position`` (``std_msgs/Float64MultiArray``), or ``trajectory``
+    (``trajectory_msgs/JointTrajectory``)."""
     joints: list[str] | None = None
     """The controller's joints, in the order its commands have them."""
     command_topic: str | None = None

@@ -14,8 +14,15 @@
         monitors, configurations (Monitor thresholds), Running sub-FSM
 
 The Running sub-FSM of the program becomes the program composite's: entering a state raises
-``e_<Task>_activate``/``_deactivate`` (its Scheduler switches Tasks), ``e_<monitor>_on``/``_off``
-(Monitors), the state's configurations and its own events. A configuration's settings live in
+``e_<program>_compose_<step>`` (its composition steps), ``e_<Task>_activate``/``_deactivate`` (its
+Scheduler switches Tasks), ``e_<monitor>_on``/``_off`` (Monitors), the state's configurations and
+its own events.
+
+A composition step of the program (paper §3.1) becomes a step of the program composite (Tasks
+added with their connections, removed, the Solver swapped) whose swaps of a Task's controller or
+setpoint generator are a step of that Task composite, of the same name (``children``: each
+composite's Composer changes only its own entities). The Scene relates the frames of every Task a
+step may add from the start. A configuration's settings live in
 the Configurator of the composite whose entities they concern (paper §5.1: each composite's
 Configurator configures its own entities): Monitor thresholds in the program's, which applies
 ``e_<configuration>``; controller gains, row weights and the priority level in the Task's. The
@@ -30,13 +37,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import yaml
-from itasc_core.communication.event_names import to_child
-from itasc_core.composition.model import (CompositeModel, ConnectionModel, EntityModel, MonitorModel,
-                                          RunningModel, SafetyModel)
+from itasc_core.communication.event_names import (ACTIVATE, DEACTIVATE, OFF, ON, SAFETY_EVENT, compose_step, event,
+                                                  named, to_child)
+from itasc_core.composition.model import (CompositeModel, CompositionStepModel, ConnectionModel, EntityModel,
+                                          MonitorModel, RunningModel, SafetyModel)
 
 from .checks import SOLVER_QUANTITIES, load_robot
-from .schema import Application, Driver, Monitor, Program, Task
+from .schema import Application, CompositionStep, Driver, Monitor, Program, Solver, Task, TaskSwap
 
 __all__ = ['to_composition', 'KINDS']
 
@@ -55,7 +62,7 @@ KINDS = {
 }
 #: The Task composite's state before any configuration event (see the module docstring).
 AS_CONFIGURED = 'as_configured'
-EMERGENCY = SafetyModel(raise_to_parent=['e_emergency'])
+EMERGENCY = SafetyModel(raise_to_parent=[SAFETY_EVENT])
 
 
 def to_composition(app: Application) -> CompositeModel:
@@ -90,20 +97,15 @@ def _watchdogs(driver: Driver, rate: float) -> list[MonitorModel]:
     then commands zero velocity)."""
     watch = f'Driver_{driver.robot}.joint_state'
     return [
-        MonitorModel(name=f'Driver_{driver.robot}_silent', watch=watch, condition='stale',
-                     timeout=max(0.25, 20.0 / rate), grace=DRIVER_GRACE, event='e_emergency'),
+        MonitorModel.model_validate({'name': f'Driver_{driver.robot}_silent', 'watch': watch, 'condition': 'stale',
+                                     'timeout': max(0.25, 20.0 / rate), 'grace': DRIVER_GRACE, 'event': SAFETY_EVENT}),
         MonitorModel(name=f'Driver_{driver.robot}_nonfinite', watch=watch, field='position',
-                     condition='nonfinite', event='e_emergency'),
+                     condition='nonfinite', event=SAFETY_EVENT),
     ]
 
 
 def _connect(source: str, target: str) -> ConnectionModel:
     return ConnectionModel.model_validate({'from': source, 'to': target})
-
-
-def _flow(value: dict[str, Any]) -> str:
-    """A YAML flow mapping: how the Scene's structured parameters are written."""
-    return yaml.safe_dump(value, default_flow_style=True, width=math.inf, sort_keys=False).strip()
 
 
 def _placement(item) -> dict[str, list[float]]:
@@ -116,14 +118,12 @@ def _driver(driver: Driver, robot, rate: float) -> EntityModel:
     name = f'Driver_{driver.robot}'
     if driver.kind == 'simulated':
         return EntityModel(name=name, kind=KINDS['simulated'], parameters={
-            'robot': robot.name, 'urdf': robot.urdf, 'base': robot.base,
-            'initial_names': list(driver.initial) or [''],
-            'initial_positions': [float(v) for v in driver.initial.values()] or [0.0],
+            'robot': robot.name, 'urdf': robot.urdf, 'base': robot.base, 'initial': dict(driver.initial),
             **_joint_limits([robot])[1]})
     suffix = 'joint_trajectory' if driver.interface == 'trajectory' else 'commands'
     controller = driver.controller.strip('/')
     return EntityModel(name=name, kind=KINDS['ros2_control'], parameters={
-        'robot': robot.name, 'joints': list(driver.joints), 'joint_states_topic': driver.joint_states,
+        'robot': robot.name, 'joints': list(driver.joints or ()), 'joint_states_topic': driver.joint_states,
         'command_topic': driver.command_topic or f'/{controller}/{suffix}', 'interface': driver.interface,
         'horizon': 2.0 / rate})
 
@@ -138,11 +138,7 @@ def _program(app: Application) -> CompositeModel:
                       for r in program.robots]
     connections = [_connect(f'Robot_{r.name}.joint_state', f'Scene.joint_state_{r.name}') for r in program.robots]
     for task in tasks:
-        if task.type == 'joint':
-            connections.append(_connect('Scene.joint_state', f'{task.name}.joint_state'))
-        else:
-            connections.append(_connect(f'Scene.relation_{task.name}', f'{task.name}.relation'))
-        connections.append(_connect(f'{task.name}.rows', 'Solver.rows'))
+        connections += _task_connections(task)
     connections.append(_connect('Scene.joint_state', 'Solver.joint_state'))
     exports = {f'joint_state_{r.name}': f'Robot_{r.name}.measured' for r in program.robots}
     exports |= {f'pose_{s.object}': f'Scene.pose_{s.object}' for s in app.sensors}
@@ -153,7 +149,9 @@ def _program(app: Application) -> CompositeModel:
     monitor_settings = {name: targets for name, targets in monitor_settings.items() if targets}
     return CompositeModel(
         name=program.name,
-        entities=[*robot_entities, _scene(app), *(_task(program, t, 1.0 / app.rate) for t in tasks), _solver(app)],
+        entities=[*robot_entities, _scene(app), *(_task(program, t, 1.0 / app.rate) for t in tasks),
+                  _solver(app, program.solver)],
+        composition_steps={name: _step(app, name, step) for name, step in program.composition.items()},
         inactive=_initially_inactive(program),
         connections=connections,
         exports=exports,
@@ -169,19 +167,38 @@ def _program(app: Application) -> CompositeModel:
 def _scene(app: Application) -> EntityModel:
     program = app.program
     sensed = {s.object for s in app.sensors}
-    robots = [_flow({'name': r.name, 'urdf': r.urdf, 'base': r.base, **_placement(r),
-                     'frames': {f.name: {'link': f.link, **_placement(f)} for f in r.frames}})
-              for r in program.robots]
-    objects = [_flow({'name': o.name, **_placement(o), 'frames': {f.name: _placement(f) for f in o.frames},
-                      'sensed': o.name in sensed,
-                      **({'motion': o.motion.model_dump()} if o.motion else {})}) for o in program.objects]
-    relations = [_flow({'name': t.name, 'o1': t.o1, 'o2': t.o2}) for t in program.tasks if t.type != 'joint']
+    robots = {r.name: {'urdf': r.urdf, 'base': r.base, **_placement(r),
+                       'frames': {f.name: {'link': f.link, **_placement(f)} for f in r.frames}}
+              for r in program.robots}
+    objects = {o.name: {**_placement(o), 'frames': {f.name: _placement(f) for f in o.frames},
+                        'sensed': o.name in sensed, **({'motion': o.motion.model_dump()} if o.motion else {})}
+               for o in program.objects}
+    relations = {t.name: {'o1': t.chain['o1'], 'o2': t.chain['o2']}
+                 for t in program.every_task if t.kind.reads == 'relation'}
     return EntityModel(name='Scene', kind=KINDS['scene'],
-                       parameters={'robots': robots, 'objects': objects or [''], 'relations': relations or ['']})
+                       parameters={'robots': robots, 'objects': objects, 'relations': relations})
 
 
-def _solver(app: Application) -> EntityModel:
-    solver = app.program.solver
+def _task_connections(task: Task) -> list[ConnectionModel]:
+    """A Task's connections in the program: its chain's input from the Scene, its rows to the Solver."""
+    if task.kind.reads == 'joints':
+        into = _connect('Scene.joint_state', f'{task.name}.joint_state')
+    else:
+        into = _connect(f'Scene.relation_{task.name}', f'{task.name}.relation')
+    return [into, _connect(f'{task.name}.rows', 'Solver.rows')]
+
+
+def _step(app: Application, name: str, step: CompositionStep) -> CompositionStepModel:
+    """A composition step of the program composite; a Task's swaps are that Task's step ``name``."""
+    return CompositionStepModel(
+        add=[_task(app.program, t, 1.0 / app.rate) for t in step.add],
+        remove=list(step.remove),
+        swap=[_solver(app, step.solver)] if step.solver is not None else [],
+        connections=[c for t in step.add for c in _task_connections(t)],
+        children=dict.fromkeys(step.swap, name))
+
+
+def _solver(app: Application, solver: Solver) -> EntityModel:
     joints, limits = _joint_limits(app.program.robots)
     return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
         'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
@@ -232,9 +249,8 @@ def _monitor(monitor: Monitor, *, enabled: bool) -> MonitorModel:
     else:
         watch, field = f'{target}.state', quantity
     return MonitorModel(name=monitor.name, watch=watch, field=field, condition=monitor.condition,
-                        threshold=monitor.threshold, band=monitor.band, timeout=monitor.timeout, event=monitor.event,
-                        enabled=enabled, enable_on=[f'e_{monitor.name}_on'],
-                        disable_on=[f'e_{monitor.name}_off'])
+                        event=monitor.event, enabled=enabled, enable_on=[event(monitor.name, ON)],
+                        disable_on=[event(monitor.name, OFF)], **monitor.condition_parameters)
 
 
 def _running(program: Program) -> RunningModel | None:
@@ -247,13 +263,14 @@ def _running(program: Program) -> RunningModel | None:
         for c in state.configure:
             targets = program.configurations[c]
             if any(s.threshold is not None for s in targets.values()):
-                events.append(f'e_{c}')  # the program's own Configurator (Monitor thresholds)
+                events.append(named(c))  # the program's own Configurator (Monitor thresholds)
             events += [to_child(t, c) for t, s in targets.items() if s.for_task]
         if state.tasks is not None:
-            events += [f"e_{t.name}_{'activate' if t.name in state.tasks else 'deactivate'}" for t in program.tasks]
+            events += [event(t.name, ACTIVATE if t.name in state.tasks else DEACTIVATE) for t in program.every_task]
         if state.monitors is not None:
-            events += [f"e_{m.name}_{'on' if m.name in state.monitors else 'off'}" for m in program.monitors]
-        states[name] = {'raise': events + state.raise_}
+            events += [event(m.name, ON if m.name in state.monitors else OFF) for m in program.monitors]
+        compose = [compose_step(program.name, step) for step in state.compose]
+        states[name] = {'raise': compose + events + state.raise_}
     return RunningModel.model_validate({
         'initial': fsm.initial, 'states': states,
         'transitions': [{'from': t.source, 'to': t.target, 'when': t.when} for t in fsm.transitions]})
@@ -264,29 +281,22 @@ def _running(program: Program) -> RunningModel | None:
 def _task(program: Program, task: Task, period: float) -> CompositeModel:
     t = task.name
     equality = task.constraint == 'equality'
-    outputs = list(task.outputs or ()) or ['']
-    entities = [
+    entities: list[EntityModel | CompositeModel] = [
         EntityModel(name='VKC', kind=KINDS['vkc'], parameters=_chain(task)),
-        EntityModel(name='CO', kind=KINDS['co'], parameters={'task': t, 'outputs': outputs}),
+        EntityModel(name='CO', kind=KINDS['co'], parameters={'task': t, 'outputs': _outputs(task)}),
     ]
     connections = [_connect('VKC.features', 'CO.features'), _connect('CO.output', 'CC.output'),
                    _connect('CO.output', 'Rows.output'), _connect('CC.control', 'Rows.control')]
     if equality:
-        entities.append(EntityModel(name='SPG', kind=KINDS['spg'],
-                                    parameters=_setpoint(task, outputs) | {'tick_period': period}))
+        entities.append(_setpoint_generator(task, period))
         connections += [_connect('VKC.features', 'SPG.features'), _connect('SPG.setpoint', 'CC.setpoint')]
-    c = task.controller
     entities += [
-        EntityModel(name='CC', kind=KINDS['cc'], parameters={
-            'task': t, 'tick_period': period, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd,
-            'max_output': c.max_output,
-            'inequality': not equality, 'lower': [float(v) for v in task.d_min or [-math.inf]],
-            'upper': [float(v) for v in task.d_max or [math.inf]]}),
+        _controller(task, period),
         EntityModel(name='Rows', kind=KINDS['rows'], parameters={
             'task': t, 'priority': task.priority, 'weights': [float(w) for w in task.weights],
             'inequality': not equality}),
     ]
-    exports = {'joint_state': 'VKC.joint_state'} if task.type == 'joint' else {'relation': 'VKC.relation'}
+    exports = {'joint_state': 'VKC.joint_state'} if task.kind.reads == 'joints' else {'relation': 'VKC.relation'}
     exports |= {'rows': 'Rows.rows', 'state': 'Rows.state'}
     if equality:
         exports['progress'] = 'SPG.progress'
@@ -295,7 +305,36 @@ def _task(program: Program, task: Task, period: float) -> CompositeModel:
     return CompositeModel(name=t, entities=entities, connections=connections, exports=exports,
                           configurations=configurations,
                           configure=[name for name in program.configure if name in configurations],
-                          running=_configuration_switch(t, configurations), safety=EMERGENCY)
+                          running=_configuration_switch(t, configurations), safety=EMERGENCY,
+                          composition_steps={name: _swap(task, step.swap[t], period)
+                                             for name, step in program.composition.items() if t in step.swap})
+
+
+def _outputs(task: Task) -> list[str]:
+    return list(task.outputs or ())
+
+
+def _setpoint_generator(task: Task, period: float) -> EntityModel:
+    return EntityModel(name='SPG', kind=KINDS['spg'],
+                       parameters=_setpoint(task, _outputs(task)) | {'tick_period': period})
+
+
+def _controller(task: Task, period: float) -> EntityModel:
+    c = task.controller
+    return EntityModel(name='CC', kind=KINDS['cc'], parameters={
+        'task': task.name, 'tick_period': period, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd,
+        'max_output': c.max_output,
+        'inequality': task.constraint != 'equality', 'lower': [float(v) for v in task.d_min or [-math.inf]],
+        'upper': [float(v) for v in task.d_max or [math.inf]]})
+
+
+def _swap(task: Task, swap: TaskSwap, period: float) -> CompositionStepModel:
+    """A Task's part of a composition step: its controller and setpoint generator replaced."""
+    swapped = task.model_copy(update={'controller': swap.controller or task.controller,
+                                      'setpoint': swap.setpoint or task.setpoint})
+    return CompositionStepModel(swap=[entity for entity, given in (
+        (_controller(swapped, period), swap.controller), (_setpoint_generator(swapped, period), swap.setpoint))
+        if given is not None])
 
 
 def _task_settings(settings) -> dict[str, dict[str, Any]]:
@@ -311,28 +350,16 @@ def _task_settings(settings) -> dict[str, dict[str, Any]]:
 
 
 def _chain(task: Task) -> dict[str, Any]:
-    if task.type == 'joint':
-        return {'task': task.name, 'type': 'joint', 'joints': list(task.joints)}
-    params = {'task': task.name, 'type': task.type, 'o1': task.o1, 'o2': task.o2}
-    return params | ({'coordinates': task.coordinates} if task.type == 'cartesian' else {})
+    """The VKC's parameters: the Task's type and its chain's fields (the task type's model)."""
+    return {'task': task.name, 'type': task.type, **task.chain}
 
 
 def _setpoint(task: Task, outputs: list[str]) -> dict[str, Any]:
-    sp = task.setpoint
+    """The SPG's parameters: the Task's setpoint section (the same model), its outputs."""
     params: dict[str, Any] = {'task': task.name, 'outputs': outputs}
-    if sp is None:
+    if task.setpoint is None:
         return params | {'kind': 'hold'}
-    params |= {'kind': sp.kind, 'duration': sp.duration, 'topic': sp.topic or ''}
-    if sp.pose is not None:
-        params |= {'target': [*map(float, sp.pose.xyz), *map(float, sp.pose.rpy)], 'target_is_pose': True}
-    elif sp.value is not None:
-        params['target'] = [float(v) for v in sp.value]
-    for key in ('max_velocity', 'max_acceleration', 'amplitude', 'offset', 'phase'):
-        if getattr(sp, key) is not None:
-            params[key] = [float(v) for v in getattr(sp, key)]
-    if sp.period is not None:
-        params['period'] = sp.period
-    return params
+    return params | task.setpoint.model_dump(exclude_none=True)
 
 
 def _configuration_switch(task: str, configurations: dict[str, Any]) -> RunningModel | None:
@@ -340,7 +367,8 @@ def _configuration_switch(task: str, configurations: dict[str, Any]) -> RunningM
     which raises ``e_<configuration>`` in the Task, where its Configurator applies it."""
     if not configurations:
         return None
-    states = {AS_CONFIGURED: {}} | {name: {'raise': [f'e_{name}']} for name in configurations}
+    states: dict[str, dict[str, list[str]]] = {AS_CONFIGURED: {}} | {name: {'raise': [named(name)]}
+                                                                     for name in configurations}
     transitions = [{'from': s, 'to': name, 'when': [to_child(task, name)]}
                    for name in configurations for s in states if s != name]
     return RunningModel.model_validate({'initial': AS_CONFIGURED, 'states': states, 'transitions': transitions})

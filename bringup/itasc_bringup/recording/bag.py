@@ -28,7 +28,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 
 from .definitions import definition, type_hash
 
-__all__ = ['BagWriter', 'BagExists', 'bag_metadata', 'qos_profiles', 'METADATA_VERSION', 'ROS_DISTRO']
+__all__ = ['BagWriter', 'BagExists', 'bag_metadata', 'qos_profiles', 'mcap_path_of', 'METADATA_VERSION', 'ROS_DISTRO']
 
 #: The metadata version rosbag2 Jazzy writes.
 METADATA_VERSION = 9
@@ -100,20 +100,26 @@ def bag_metadata(*, file_name: str, topics: list[dict[str, Any]], start_ns: int,
     }
 
 
+def mcap_path_of(path: Path) -> Path:
+    """The MCAP file of the recording ``path`` (a bag folder, or a ``.mcap`` file), its folder
+    made; raises :class:`BagExists` for a folder that is not new or empty."""
+    if path.suffix == '.mcap':
+        mcap = path
+    else:
+        if path.exists() and (not path.is_dir() or any(path.iterdir())):
+            raise BagExists(f'{path} exists already; a bag is written into a new (or empty) folder')
+        mcap = path / f'{path.name}_0.mcap'
+    mcap.parent.mkdir(parents=True, exist_ok=True)
+    return mcap
+
+
 class BagWriter:
     """Writes one recording: a bag folder, or a bare MCAP file when ``path`` ends in ``.mcap``."""
 
     def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup') -> None:
         path = Path(path)
-        if path.suffix == '.mcap':
-            self.folder: Path | None = None
-            self.mcap_path = path
-        else:
-            if path.exists() and (not path.is_dir() or any(path.iterdir())):
-                raise BagExists(f'{path} exists already; a bag is written into a new (or empty) folder')
-            self.folder = path
-            self.mcap_path = path / f'{path.name}_0.mcap'
-        self.mcap_path.parent.mkdir(parents=True, exist_ok=True)
+        self.folder: Path | None = None if path.suffix == '.mcap' else path
+        self.mcap_path = mcap_path_of(path)
         self._stream = open(self.mcap_path, 'wb')
         self._writer = Writer(self._stream, compression=_COMPRESSION[compression])
         self._writer.start(profile='ros2', library=library)
@@ -123,11 +129,14 @@ class BagWriter:
         self._end = 0
         self.closed = False
 
-    def add_topic(self, topic: str, type_name: str, *, offered: Iterable[QoSProfile]) -> int:
-        """Register ``topic``; returns its channel id. Raises DefinitionNotFound for an unknown type."""
+    def add_topic(self, topic: str, type_name: str, *, offered: Iterable[QoSProfile] = (),
+                  profiles: list[dict[str, Any]] | None = None) -> int:
+        """Register ``topic`` with the QoS profiles its publishers ``offered`` (or those
+        ``profiles``, as :func:`qos_profiles` gives them); returns its channel id. Raises
+        DefinitionNotFound for an unknown type."""
         encoding, text = definition(type_name)
         digest = type_hash(type_name)
-        profiles = qos_profiles(offered)
+        profiles = qos_profiles(offered) if profiles is None else profiles
         schema_id = self._schemas.get(type_name)
         if schema_id is None:
             schema_id = self._schemas[type_name] = self._writer.register_schema(type_name, encoding, text.encode())

@@ -13,7 +13,17 @@ other topic (a composite's event and state topics), before any publisher exists,
 tick is in the recording. Other topics are discovered: every ``scan_period`` the node looks at
 the ROS graph and subscribes to each new topic under ``prefix`` with a QoS that matches its
 publishers: keep-last ``depth``, reliable unless a publisher is best effort, transient local when
-all publishers offer it (the Coordinators' latched ``.../state`` topics).
+all publishers offer it (the Coordinators' latched ``.../state`` topics, the event topics). A
+publisher that appears later and that no reader of the topic matches (a volatile one where the
+reader asked for transient local, e.g. ``ros2 topic pub`` on an event topic; a best-effort one
+where it asked for reliable) gets a volatile reader of its own; a message that reaches the
+recorder through two readers is written once (:mod:`.duplicates`).
+
+Recording stays off the control path (issue #9). A data-flow output in this process is *tapped*
+(:mod:`..observe`): the tick hands the sample over and pays no DDS send for the recorder; the
+samples are turned into CDR bytes between ticks (:meth:`Recorder.drain`, :mod:`.cdr`: a few
+microseconds each, no ROS message built), a topic of another process is read over DDS as its raw
+bytes, and a process of its own compresses and writes the bag (:mod:`.writer`).
 
 :meth:`Recorder.last` answers whether (and what) a topic's newest message was written, e.g. a
 composite's final state before the recording is closed.
@@ -44,11 +54,17 @@ from typing import Any
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 
-from .bag import BagWriter
-from .definitions import DefinitionNotFound
+from itasc_core.communication.samples import as_message
+
+from ..observe import Observer
+from .bag import qos_profiles
+from .cdr import encoder
+from .definitions import DefinitionNotFound, definition
+from .duplicates import Duplicates
+from .writer import BagProcess
 
 __all__ = ['Recorder', 'install_signal_handlers', 'main']
 
@@ -56,6 +72,14 @@ __all__ = ['Recorder', 'install_signal_handlers', 'main']
 def _import_message(type_name: str) -> type:
     package, kind, name = type_name.split('/')
     return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+def _matches(reader: QoSProfile, writer: QoSProfile) -> bool:
+    """Whether a reader asking for ``reader`` matches a writer offering ``writer`` (DDS: the offer
+    must be at least the request)."""
+    return (reader.reliability != ReliabilityPolicy.RELIABLE or writer.reliability == ReliabilityPolicy.RELIABLE) \
+        and (reader.durability != DurabilityPolicy.TRANSIENT_LOCAL
+             or writer.durability == DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def _under(topic: str, prefix: str) -> bool:
@@ -71,7 +95,7 @@ class Recorder(Node):
                  scan_period: float = 0.2, depth: int = 1000, compression: str = 'zstd',
                  flush_period: float = 1.0, exclude: Iterable[str] = ()) -> None:
         # the bag first: a path that cannot take a bag fails before any node exists
-        self._bag = BagWriter(path, compression=compression, library='itasc_bringup.recording (mcap python)')
+        self._bag = BagProcess(path, compression=compression, library='itasc_bringup.recording (mcap python)')
         super().__init__(node_name, context=context)
         self.path = os.fspath(path)
         self.prefix = prefix
@@ -83,6 +107,13 @@ class Recorder(Node):
         self.counts: dict[str, int] = {}
         self._last: dict[str, bytes] = {}
         self._classes: dict[str, type] = {}
+        self._channels: dict[str, int] = {}
+        #: topic -> the QoS each of its readers asked for
+        self._readers: dict[str, list[QoSProfile]] = {}
+        #: topic -> its publishers when they were last matched against its readers
+        self._publisher_counts: dict[str, int] = {}
+        #: topics taken by several readers -> the copies to drop
+        self._duplicates: dict[str, Duplicates] = {}
         self._listeners: list[Callable[[str], None]] = []
         self._skipped: set[str] = set()
         self._lock = threading.Lock()
@@ -91,6 +122,9 @@ class Recorder(Node):
         self._closed = False
         self._last_flush = time.monotonic()
         self._flush_period = flush_period
+        self._observer = Observer(self)
+        #: tapped samples not written yet: (topic, channel, tapped at [ns], sample)
+        self._pending: list[tuple[str, int, int, Any]] = []
 
         self._atexit = _weak_close(self)
         atexit.register(self._atexit)
@@ -100,7 +134,8 @@ class Recorder(Node):
     # ----------------------------------------------------------------- what is recorded
     def record(self, topic: str, type_name: str, *, qos: QoSProfile) -> None:
         """Record ``topic`` from now on, before any publisher exists (e.g. a composite's event and
-        state topics, known from the model, so that no event of the bring-up is missed)."""
+        state topics, known from the model, so that no event of the bring-up is missed); a
+        data-flow output in this process is tapped."""
         if topic not in self.topics:
             self._subscribe(topic, type_name, qos=qos, offered=[qos])
 
@@ -119,7 +154,13 @@ class Recorder(Node):
     def _scan(self) -> None:
         if self._closed:
             return
+        self.drain()
+        tapped = self._observer.tapped
         for topic, types in self.get_topic_names_and_types():
+            if topic in self._readers:
+                if topic not in tapped:
+                    self._match_new_publishers(topic)
+                continue
             if topic in self.topics or topic in self._skipped or topic in self.exclude:
                 continue
             if not _under(topic, self.prefix):
@@ -138,6 +179,17 @@ class Recorder(Node):
                 if not self._closed:
                     self._bag.flush()
 
+    def drain(self) -> None:
+        """Write the samples tapped since the last call (call it between ticks: a few
+        microseconds per sample)."""
+        if not self._pending:
+            return
+        pending, self._pending = self._pending, []
+        for topic, channel_id, tapped_at, sample in pending:
+            encode = encoder(type(sample))
+            data = encode(sample) if encode is not None else serialize_message(as_message(sample))
+            self._write(topic, channel_id, data, sent=tapped_at, reader=0, received=tapped_at)
+
     def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]
         best_effort = any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered)
@@ -149,13 +201,33 @@ class Recorder(Node):
                          else ReliabilityPolicy.RELIABLE),
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
+    def _match_new_publishers(self, topic: str) -> None:
+        """Give ``topic`` a volatile reader for publishers that none of its readers matches."""
+        count = self.count_publishers(topic)
+        if count == self._publisher_counts.get(topic):
+            return
+        self._publisher_counts[topic] = count
+        readers = self._readers[topic]
+        unmatched = [p for p in self.get_publishers_info_by_topic(topic)
+                     if not any(_matches(reader, p.qos_profile) for reader in readers)]
+        if not unmatched:
+            return
+        # volatile: a transient-local reader added now would bring in again what was written
+        qos = self._qos(unmatched)
+        qos.durability = DurabilityPolicy.VOLATILE
+        self._duplicates.setdefault(topic, Duplicates(window=4 * max(r.depth for r in readers)))
+        self._add_reader(topic, qos)
+        self.get_logger().info(f'{topic}: a {qos.reliability.name.lower()} volatile reader more, for '
+                               f'{", ".join(f"{p.node_namespace}/{p.node_name}" for p in unmatched)}')
+
     def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile]) -> None:
         try:
             msg_class = _import_message(type_name)
+            definition(type_name)  # an unknown type is refused here, before the writer sees it
             with self._lock:
                 if self._closed:
                     return
-                channel_id = self._bag.add_topic(topic, type_name, offered=offered)
+                channel_id = self._bag.add_topic(topic, type_name, profiles=qos_profiles(offered))
         except (ImportError, AttributeError, ValueError, DefinitionNotFound) as err:
             self._skipped.add(topic)
             self.get_logger().warning(f'not recording {topic} ({type_name}): {err}')
@@ -163,30 +235,47 @@ class Recorder(Node):
         self.topics[topic] = type_name
         self.counts[topic] = 0
         self._classes[topic] = msg_class
+        self._channels[topic] = channel_id
+        self._readers[topic] = []
+        self._observer.observe(topic, functools.partial(self._tapped, channel_id),
+                               subscribe=lambda: self._add_reader(topic, qos))
+        self.get_logger().debug(f'recording {topic} ({type_name})')
+
+    def _tapped(self, channel_id: int, topic: str, sample: Any) -> None:
+        self._pending.append((topic, channel_id, time.time_ns(), sample))
+
+    def _add_reader(self, topic: str, qos: QoSProfile) -> Subscription:
         # keep-last ``depth``, whatever the caller's profile says about the queue
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(self.depth, qos.depth),
                          reliability=qos.reliability, durability=qos.durability)
-        subscription = self.create_subscription(msg_class, topic, functools.partial(self._received, topic, channel_id),
-                                                 qos, raw=True)
+        readers = self._readers[topic]
+        callback = functools.partial(self._received, topic, self._channels[topic], len(readers))
+        subscription = self.create_subscription(self._classes[topic], topic, callback, qos, raw=True)
         # the callback takes the message info too (its signature alone can't say so: see _received)
         subscription._callback_type = Subscription.CallbackType.WithMessageInfo
-        self.get_logger().debug(f'recording {topic} ({type_name})')
+        readers.append(qos)
+        return subscription
 
     # ----------------------------------------------------------------- writing
-    def _received(self, topic: str, channel_id: int, *received: Any) -> None:
+    def _received(self, topic: str, channel_id: int, reader: int, *received: Any) -> None:
         # rclpy's executors pass (message, info); Jazzy's EventsExecutor passes the pair as one
         # argument (events_executor.cpp: ``callback(msg_info)``)
         data, info = received if len(received) == 2 else received[0]
-        self._write(topic, channel_id, data, sent=info.get('source_timestamp') or None)
+        self._write(topic, channel_id, data, sent=info.get('source_timestamp') or None, reader=reader)
 
-    def _write(self, topic: str, channel_id: int, data: bytes, *, sent: int | None) -> None:
-        """Write ``data`` received now and sent at ``sent`` (the publisher's DDS source timestamp,
-        ns): a reader orders messages of different topics by it, since a busy recorder may take
-        one topic's messages later than another's."""
-        stamp = time.time_ns()
+    def _write(self, topic: str, channel_id: int, data: bytes, *, sent: int | None, reader: int,
+               received: int | None = None) -> None:
+        """Write ``data`` received at ``received`` (default: now) by reader number ``reader`` of
+        ``topic`` and sent at ``sent`` (the publisher's DDS source timestamp, ns): a reader orders
+        messages of different topics by it, since a busy recorder may take one topic's messages
+        later than another's."""
+        stamp = time.time_ns() if received is None else received
         data = bytes(data)
         with self._lock:
             if self._closed:
+                return
+            duplicates = self._duplicates.get(topic)
+            if duplicates is not None and not duplicates.new(data, reader=reader):
                 return
             self._owner = threading.get_ident()
             try:
@@ -218,10 +307,13 @@ class Recorder(Node):
     def close(self) -> None:
         """Finish the bag (MCAP summary and footer, metadata.yaml) and close it. Safe to call any
         number of times, from any thread, before or after the node or its context is destroyed."""
+        if not self._closed and threading.current_thread() is threading.main_thread():
+            self.drain()
         with self._lock:
             if self._closed:
                 return
             self._closed = True
+            self._observer.close()
             self._bag.close()
         atexit.unregister(self._atexit)
 

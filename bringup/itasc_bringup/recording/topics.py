@@ -29,6 +29,6 @@ def data_flow_topics(model: CompositeModel, *, namespace: str | None = None) -> 
 
 def _outputs(entity: EntityModel, namespace: str) -> dict[str, str]:
     cls = resolve_kind(entity.kind)
-    params = {**cls.PARAMETERS, **entity.parameters}
+    params = cls.parameters_of(entity.parameters)
     return {FunctionalEntity.port_topic(namespace, entity.name, spec.name): spec.msg_type_name
             for spec in cls.port_specs(params) if spec.direction == 'output'}

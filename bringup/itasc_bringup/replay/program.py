@@ -26,8 +26,9 @@ from typing import Any
 
 import rclpy
 from itasc_core.communication.event_names import is_addressed_to
-from itasc_core.communication.events import EventListener, EventRaiser
-from itasc_core.communication.ports import InputPort, LocalBus, OutputPort, PortSpec
+from itasc_core.communication.events import EventRaiser
+from itasc_core.communication.ports import InputPort, OutputPort, PortSpec
+from itasc_core.communication.samples import as_message, as_sample
 from itasc_core.composition.composer import Composer, bring_up
 from itasc_core.composition.deployment import Runtime
 from itasc_core.composition.model import OUTSIDE_EVENTS, CompositeModel
@@ -126,7 +127,8 @@ class _Probe:
     port: InputPort | None = None
     by_stamp: dict[int, Any] = field(default_factory=dict)
 
-    def take(self, msg: Any) -> None:
+    def take(self, sample: Any) -> None:
+        msg = as_message(sample)
         self.by_stamp.setdefault(nanoseconds(msg), msg)
 
 
@@ -137,11 +139,11 @@ def replay_programs(plan: Plan, recording: Recording) -> Replayed:
     replay = None
     try:
         replay = _Replay(plan, recording)
-        EventListener.gate = replay.timing
+        replay.runtime.events.gate = replay.timing
         return replay.run()
     finally:
-        EventListener.gate = None
         if replay is not None:
+            replay.runtime.events.gate = None
             replay.destroy()
         rclpy.try_shutdown()
 
@@ -163,7 +165,7 @@ class _Replay:
         self.unbound = list(plan.bindings)
         self.outside = _outside_events(plan, recording)
         self.raisers: dict[tuple[str, str], EventRaiser] = {}
-        self.quiet_at = -1  # EventRaiser.raised when the executor was last found with nothing ready
+        self.quiet_at = -1  # the events raised when the executor was last found with nothing ready
         self.composers: dict[str, Composer] = {}
 
     def run(self) -> Replayed:
@@ -178,7 +180,7 @@ class _Replay:
         for k, t in enumerate(recording.ticks):
             while fed < len(inputs) and inputs[fed][0] < recording.starts[k]:  # sent before the tick began
                 _, topic, msg = inputs[fed]
-                self.feeds[topic].write(msg)
+                self.feeds[topic].write(as_sample(msg))
                 fed += 1
             self.connect_probes()
             self.timing.gap = k
@@ -211,9 +213,9 @@ class _Replay:
         while True:
             released = self.timing.release()
             self.update_coordinators()
-            if not released and EventRaiser.raised == self.quiet_at:
+            if not released and self.runtime.events.raised == self.quiet_at:
                 break
-            self.quiet_at = EventRaiser.raised
+            self.quiet_at = self.runtime.events.raised
             self.spin_ready()
             self.runtime.reap()
         # the root's Composer binds the programs' inputs once they are deployed
@@ -248,7 +250,7 @@ class _Replay:
     def connect_probes(self) -> None:
         """Take the compared outputs in this process, as soon as they exist."""
         for topic, probe in self.probes.items():
-            output = LocalBus.lookup(topic)
+            output = self.runtime.bus.lookup(topic)
             if probe.port is None and output is not None:
                 probe.port = InputPort(self.node, output.spec, on_sample=probe.take)
                 probe.port.connect(topic)

@@ -70,7 +70,7 @@ class Recording:
         for topic, samples in self.samples.items():
             if topic.startswith(prefix):
                 for _, msg in samples:
-                    k = index.get(_stamp_of(msg))
+                    k = _tick_of(index, msg)
                     if k is not None:
                         found[k] = True
         return found
@@ -97,13 +97,19 @@ def message_class(type_name: str) -> type:
 
 def is_stamped(type_name: str) -> bool:
     """Whether messages of this type carry a stamp (``header.stamp`` or ``stamp``)."""
-    fields = message_class(type_name).get_fields_and_field_types()
+    fields = message_class(type_name).get_fields_and_field_types()  # type: ignore[attr-defined]  # rosidl
     return 'header' in fields or 'stamp' in fields
 
 
 def _stamp_of(msg) -> int | None:
     """A data message's stamp in nanoseconds; None for an unstamped one (a labelled table)."""
     return nanoseconds(msg) if hasattr(msg, 'header') or hasattr(msg, 'stamp') else None
+
+
+def _tick_of(index: dict[int, int], msg) -> int | None:
+    """The tick whose time ``msg`` is stamped with, None if none (or unstamped)."""
+    stamp = _stamp_of(msg)
+    return None if stamp is None else index.get(stamp)
 
 
 def _files(bag: Path) -> list[Path]:
@@ -121,7 +127,7 @@ def topic_names(bag: Path) -> list[str]:
                 summary = make_reader(stream).get_summary()
                 names += [c.topic for c in summary.channels.values()] if summary else []
         return names
-    except Exception as err:  # mcap raises several kinds for a file that is not an MCAP
+    except Exception as err:  # noqa: BLE001 - mcap raises several kinds for a file that is not an MCAP
         raise ReplayError(f'{bag}: not a readable bag ({type(err).__name__}: {err})') from None
 
 
@@ -146,7 +152,7 @@ def _messages(bag: Path, wanted: Callable[[str], bool]):
                     yield channel.topic, message.publish_time * 1e-9, deserialize_message(message.data, cls)
     except ReplayError:
         raise
-    except Exception as err:  # mcap and the deserializer raise several kinds for a broken file
+    except Exception as err:  # noqa: BLE001 - mcap and the deserializer raise several kinds for a broken file
         raise ReplayError(f'{bag}: not a readable bag ({type(err).__name__}: {err})') from None
 
 
@@ -180,7 +186,7 @@ def read_recording(bag: Path, *, commands: list[str], outputs: set[str], inputs:
     starts = [float('inf')] * len(ticks)
     for topic in outputs | set(commands):
         for sent, msg in samples.get(topic, []):
-            k = index.get(_stamp_of(msg))
+            k = _tick_of(index, msg)
             if k is not None:
                 starts[k] = min(starts[k], sent)
     by_send = lambda item: item.sent  # noqa: E731

@@ -26,26 +26,14 @@ import re
 from collections import Counter, defaultdict, deque
 from typing import Callable
 
-from itasc_core.communication.event_names import from_parent
+from itasc_core.communication import event_names as names
+from itasc_core.communication.event_names import ANSWERS, from_parent
 from itasc_core.communication.events import Event
 from rclpy.node import Node
 
 from .recording import RecordedEvent, RecordedState, Recording
 
 __all__ = ['EventTiming']
-
-#: A Coordinator's commands to its own Composer, Configurator and Scheduler, and their answers
-#: (both ``e_<composite>_<suffix>``).
-ANSWERS = {
-    'deploy': ('deployed', 'deploy_failed'),
-    'configure_entities': ('entities_configured', 'configure_failed'),
-    'connect': ('connected', 'connect_failed'),
-    'scheduler_initialize': ('scheduler_initialized',),
-    'scheduler_activate': ('scheduler_activated',),
-    'disengage': ('disengaged',),
-    'cleanup_computation': ('computation_cleaned',),
-    'cleanup': ('cleaned',),
-}
 
 
 #: A Scheduler's command to switch one of its entities or child composites on or off.
@@ -54,19 +42,20 @@ SWITCH = re.compile(r'^e_(?P<item>\w+)_(?P<on>activate|deactivate)$')
 
 def _answers(composite: str, name: str) -> set[str]:
     """The events with which an entity of ``composite`` may answer event ``name``."""
-    answers = {f'{name}_applied', f'{name}_failed'}  # a Configurator, for a named configuration
-    prefix = f'e_{composite}_'
+    configuration = name.removeprefix('e_')
+    answers = {names.event(configuration, names.APPLIED), names.event(configuration, names.FAILED)}  # a Configurator's
+    prefix = names.event(composite, '')
     if name.startswith(prefix):
         command = name.removeprefix(prefix)
-        answers |= {prefix + answer for answer in ANSWERS.get(command, ())}
+        answers |= {names.event(composite, answer) for answer in ANSWERS.get(command, ())}
         if command.startswith('compose_'):
-            answers |= {f'{prefix}composed', f'{prefix}compose_failed'}
+            answers |= {names.event(composite, names.COMPOSED), names.event(composite, names.COMPOSE_FAILED)}
         answers.add(from_parent(composite, name))  # a Coordinator passing its parent's command on
     return answers
 
 
 class EventTiming:
-    """The gate (``EventListener.gate``) of a replay: holds each event for each of its receivers
+    """The gate (``EventHub.gate``) of a replay: holds each event for each of its receivers
     until the gap it is due in. :attr:`gap` is the current gap; :meth:`release` hands over what
     became due."""
 

@@ -58,7 +58,7 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Ca
     composites = {m.name: path for path, m in walk(model)}
     solvers = [f'{path}/Solver/status' for path, m in walk(model) if any(e.name == 'Solver' for e in m.entities)]
     Diagnostics(node, app=model.name, composites=composites, timer=lambda: composer.timer,
-                solvers=LatestSamples(node, {t: SolverStatus for t in solvers}))  # lives as long as the node
+                solvers=LatestSamples(node, dict.fromkeys(solvers, SolverStatus)))  # lives as long as the node
     path = resolve_app(app)
     if not _is_application(path):
         return lambda: None  # a composition model of the pattern itself: no robots to show

@@ -36,9 +36,9 @@ def robot_description(robot: RobotModel) -> str:
 def link_tree(description: str) -> tuple[str, dict[str, tuple[str, bool]]]:
     """The root link of a URDF and, per other link, ``(parent link, joint is fixed)``."""
     root = ET.fromstring(description)
-    parents = {j.find('child').get('link'): (j.find('parent').get('link'), j.get('type') == 'fixed')
+    parents = {j.find('child').get('link', ''): (j.find('parent').get('link', ''), j.get('type') == 'fixed')
                for j in root.iter('joint')}
-    links = [link.get('name') for link in root.iter('link')]
+    links = [link.get('name', '') for link in root.iter('link')]
     roots = [link for link in links if link not in parents]
     if len(roots) != 1:
         raise ValueError(f'URDF {root.get("name")!r} has {len(roots)} root links {roots}, expected one')

@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import statistics
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
-from itasc_core.communication.qos import DATA_QOS, EVENT_QOS, STATE_QOS
+from itasc_core.communication.event_names import SAFETY_EVENT
+from itasc_core.communication.events import EventListener, events_topic
+from itasc_core.communication.qos import DATA_QOS, STATE_QOS
 from itasc_msgs.msg import CoordinatorState, Event
 
 if TYPE_CHECKING:
@@ -47,20 +49,22 @@ class Diagnostics:
     """Publishes one DiagnosticStatus per composite of ``composites`` (name -> namespace); the
     Solver status is the newest of ``solvers``."""
 
-    def __init__(self, node: Node, *, app: str, composites: dict[str, str], timer: Callable[[], object | None],
+    def __init__(self, node: Node, *, app: str, composites: dict[str, str], timer: Callable[[], Any],
                  solvers: 'LatestSamples', period: float = 1.0) -> None:
         self._node = node
         self._app = app
         self._timer = timer
         self.namespaces = composites
-        self.states = {name: '-' for name in composites}
+        self.states = dict.fromkeys(composites, '-')
         self.safety_reason = ''
         self._solvers = solvers
         self._shown: dict[str, tuple[bytes, str]] = {}
         self.publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DATA_QOS)
         for namespace in composites.values():
             node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
-            node.create_subscription(Event, f'{namespace}/events', self._on_event, EVENT_QOS)
+        # the process's event readers (its event hub), not one more reader of every event topic
+        self._events = EventListener(node, topics=[events_topic(ns) for ns in composites.values()], immediate=True,
+                                     on_priority=self._on_event, accept=lambda name: name == SAFETY_EVENT)
         self._periodic = node.create_timer(period, self.publish)
 
     def _on_state(self, msg: CoordinatorState) -> None:
@@ -69,7 +73,7 @@ class Diagnostics:
             self._publish_if_changed()
 
     def _on_event(self, msg: Event) -> None:
-        if msg.name == 'e_emergency' and msg.detail:
+        if msg.detail:
             self.safety_reason = msg.detail
             self._publish_if_changed(force=any(s.startswith('Safety') for s in self.states.values()))
 

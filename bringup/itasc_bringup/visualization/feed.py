@@ -26,6 +26,7 @@ never blocks).
 
 from __future__ import annotations
 
+import functools
 import os
 import pickle
 import struct
@@ -37,10 +38,9 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
-
 from itasc_core.communication.ports import LocalBus
-from itasc_msgs.msg import TaskState
+from itasc_core.communication.samples import as_message
+from itasc_msgs.msg import Features, TaskState
 
 __all__ = ['LatestSamples', 'FeedWriter', 'FeedReader', 'display_topics', 'LATEST_QOS']
 
@@ -60,8 +60,8 @@ def display_topics(app, namespace: str) -> dict[str, type]:
     moving = {o.name for o in app.program.objects if o.motion}
     for task in app.program.tasks:
         topics[f'{program}/{task.name}/Rows/state'] = TaskState
-        if task.type != 'joint' and task.o1.partition('/')[0] in moving:
-            topics[f'{program}/Scene/relation_{task.name}'] = Float64MultiArray
+        if task.kind.reads == 'relation' and task.chain['o1'].partition('/')[0] in moving:
+            topics[f'{program}/Scene/relation_{task.name}'] = Features
     return topics
 
 
@@ -76,21 +76,26 @@ class LatestSamples:
         self._local: dict[str, Any] = {}
         self._remote: dict[str, Any] = {}  # topic -> newest message of a remote publisher
         self._subscriptions: list = []
+        self._bus = LocalBus.of(node.context)
 
     def _resolve(self, topic: str) -> None:
-        port = LocalBus.lookup(topic)
+        port = self._bus.lookup(topic)
         if port is not None:
             self._local[topic] = port
         elif self._node.count_publishers(topic) > 0:  # deployed in another process
             self._remote[topic] = None
             self._subscriptions.append(self._node.create_subscription(
-                self._types[topic], topic, lambda msg, t=topic: self._remote.__setitem__(t, msg), LATEST_QOS))
+                self._types[topic], topic, functools.partial(self._keep, topic), LATEST_QOS))
+
+    def _keep(self, topic: str, msg: Any) -> None:
+        self._remote[topic] = msg
 
     def get(self, topic: str) -> Any | None:
-        """The newest sample on ``topic``, None before the first (or before its output exists)."""
+        """The newest sample on ``topic`` (a port's sample, or a remote publisher's message), None
+        before the first (or before its output exists)."""
         port = self._local.get(topic)
         if port is not None:
-            if LocalBus.lookup(topic) is port:
+            if self._bus.lookup(topic) is port:
                 return port.last
             del self._local[topic]  # re-composed: the output was replaced
         if topic not in self._remote:
@@ -132,7 +137,7 @@ class FeedWriter:
         changed = {topic: msg for topic, msg in self._samples.items() if self._sent.get(topic) is not msg}
         if not changed:
             return
-        payload = pickle.dumps({topic: serialize_message(msg) for topic, msg in changed.items()},
+        payload = pickle.dumps({topic: serialize_message(as_message(msg)) for topic, msg in changed.items()},
                                protocol=pickle.HIGHEST_PROTOCOL)
         frame = _LENGTH.pack(len(payload)) + payload
         rest = self._write(frame)

@@ -84,8 +84,9 @@ def _marker(ns: str, index: int, kind: int, frame: str, stamp: Time, **fields) -
     return marker
 
 
-def _axes(ns: str, index: int, frame: str, stamp: Time, placement: pin.SE3 = pin.SE3.Identity(),
+def _axes(ns: str, index: int, frame: str, stamp: Time, placement: pin.SE3 | None = None,
           length: float = AXIS_LENGTH) -> Marker:
+    placement = pin.SE3.Identity() if placement is None else placement
     marker = _marker(ns, index, Marker.LINE_LIST, frame, stamp)
     marker.scale.x = length / 10
     for axis, rgb in enumerate(((1, 0, 0), (0, 1, 0), (0, 0, 1))):
@@ -120,18 +121,18 @@ def scene_markers(app: Application, tree: FrameTree, views: dict[str, TaskView],
     out += [_axes('frames', i, frame, stamp) for i, frame in enumerate(known)]
     for i, obj in enumerate(o for o in app.program.objects if o.size and tree.frame_pose(o.name) is not None):
         marker = _marker('obstacles', i, Marker.SPHERE, obj.name, stamp, color=_colour((0.8, 0.2, 0.8), 0.8))
-        marker.scale.x = marker.scale.y = marker.scale.z = float(obj.size)
+        marker.scale.x = marker.scale.y = marker.scale.z = float(obj.size or 0.0)
         out.append(marker)
-    tasks = [t for t in app.program.tasks if t.type != 'joint' and tree.frame_pose(t.o1) is not None
-             and tree.frame_pose(t.o2) is not None]
-    for i, task in enumerate(t for t in tasks if t.type == 'cartesian' and _target(t) is not None):
+    tasks = [t for t in app.program.tasks if t.kind.reads == 'relation' and tree.frame_pose(t.chain['o1']) is not None
+             and tree.frame_pose(t.chain['o2']) is not None]
+    for i, task in enumerate(t for t in tasks if t.kind.pose_setpoints and _target(t) is not None):
         target = _target(task)
-        sphere = _marker('targets', i, Marker.SPHERE, task.o1, stamp, pose=_pose(target),
+        sphere = _marker('targets', i, Marker.SPHERE, task.chain['o1'], stamp, pose=_pose(target),
                          color=_colour((0.2, 0.5, 1.0), 0.6))
         sphere.scale.x = sphere.scale.y = sphere.scale.z = 0.02
-        out += [sphere, _axes('target_axes', i, task.o1, stamp, target, length=AXIS_LENGTH / 2)]
+        out += [sphere, _axes('target_axes', i, task.chain['o1'], stamp, target, length=AXIS_LENGTH / 2)]
     for i, task in enumerate(t for t in tasks if t.type == 'distance'):
-        p1, p2 = tree.frame_pose(task.o1).translation, tree.frame_pose(task.o2).translation
+        p1, p2 = tree.frame_pose(task.chain['o1']).translation, tree.frame_pose(task.chain['o2']).translation
         view = views.get(task.name, TaskView(task.name))
         d_min = task.d_min[0] if task.d_min else None
         d_max = task.d_max[0] if task.d_max else None
@@ -141,15 +142,15 @@ def scene_markers(app: Application, tree: FrameTree, views: dict[str, TaskView],
         line.scale.x = 0.005
         out.append(line)
         if d_min is not None:
-            bound = _marker('d_min', i, Marker.SPHERE, task.o1, stamp, color=_colour(STATE_COLOURS[state], 0.25),
-                            text=state)
+            bound = _marker('d_min', i, Marker.SPHERE, task.chain['o1'], stamp,
+                            color=_colour(STATE_COLOURS[state], 0.25), text=state)
             bound.scale.x = bound.scale.y = bound.scale.z = 2.0 * d_min
             out.append(bound)
     for i, task in enumerate(tasks):
         view = views.get(task.name, TaskView(task.name))
         text = (f'{task.name}: {view.running_state}, {"active" if view.active else "inactive"}, '
                 f'error {view.error_norm:.4f}')
-        label = _marker('tasks', i, Marker.TEXT_VIEW_FACING, task.o2, stamp, text=text,
+        label = _marker('tasks', i, Marker.TEXT_VIEW_FACING, task.chain['o2'], stamp, text=text,
                         color=_colour((1.0, 1.0, 1.0)))
         label.pose.position.z = 0.1 + 0.05 * i
         label.scale.z = 0.03

@@ -19,6 +19,7 @@ topics instead. It publishes
 
 from __future__ import annotations
 
+import functools
 import argparse
 import signal
 import sys
@@ -33,12 +34,13 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from itasc_core.communication.qos import DATA_QOS, STATE_QOS
-from itasc_msgs.msg import CoordinatorState, TaskState
+from itasc_core.itasc.coordinates import features_pose
+from itasc_msgs.msg import CoordinatorState, Features, TaskState
 
 from ..model.schema import Application
 from .description import robot_description
@@ -114,7 +116,7 @@ class Visualizer(Node):
         self._task_seen: dict[str, float] = {}
         for task in app.program.tasks:  # on a change of the Task's state only (latched)
             self.create_subscription(CoordinatorState, f'{program}/{task.name}/state',
-                                     lambda msg, t=task.name: self._on_state(t, msg), STATE_QOS)
+                                     functools.partial(self._on_state, task.name), STATE_QOS)
         # the data flow the pictures are drawn from: one handler per topic
         self._handlers: dict[str, Callable] = {}
         topics = display_topics(app, namespace)
@@ -146,13 +148,13 @@ class Visualizer(Node):
             view.active, view.error_norm = bool(msg.active), float(msg.error_norm)
             self._task_seen[msg.task] = self.get_clock().now().nanoseconds * 1e-9
 
-    def _on_relation(self, task, msg: Float64MultiArray) -> None:
-        rows, columns = msg.layout.dim[0].size, msg.layout.dim[1].size
-        value = np.asarray(msg.data, dtype=float).reshape(rows, columns)[:6, 0]
-        relative = pin.SE3(pin.exp3(value[3:6]), value[:3])
-        pose = self.tree.object_pose_from(task.o1, task.o2, relative)
+    def _on_relation(self, task, msg: Features) -> None:
+        value = np.asarray(msg.value, dtype=float)
+        relative = features_pose(value, coordinates='xyz_log3')
+        o1, o2 = task.chain['o1'], task.chain['o2']
+        pose = self.tree.object_pose_from(o1, o2, relative)
         if pose is not None:
-            self._set_object(task.o1.partition('/')[0], pose)
+            self._set_object(o1.partition('/')[0], pose)
 
     def _display(self) -> None:
         if self._feed is not None:

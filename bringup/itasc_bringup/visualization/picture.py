@@ -59,7 +59,8 @@ def _read(path: pathlib.Path) -> dict[str, list[tuple[int, Any]]]:
     out: dict[str, list] = defaultdict(list)
     with AnyReader([path]) as reader:
         for connection, stamp, raw in reader.messages():
-            if connection.msgtype in (TF, MARKERS) or (connection.msgtype == STATE and connection.topic.count('/') == 3):
+            state = connection.msgtype == STATE and connection.topic.count('/') == 3
+            if connection.msgtype in (TF, MARKERS) or state:
                 out[connection.topic].append((stamp, reader.deserialize(raw, connection.msgtype)))
     return out
 

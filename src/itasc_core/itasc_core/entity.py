@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from .communication.events import EventListener, EventRaiser, events_topic
 
@@ -44,11 +45,19 @@ class CompositeContext:
         return CompositeContext(name=name, namespace=f'{self.namespace}/{name}', parent_namespace=self.namespace)
 
 
+#: rclpy's ``~/get_type_description`` service outlives a node destroyed soon after it left an
+#: EventsExecutor (it stays in the ROS graph for the life of the process), so an entity removed at
+#: run time would not be gone from the graph. Our message types are installed wherever our nodes
+#: are looked at, so entities go without it.
+_NO_TYPE_DESCRIPTION_SERVICE = Parameter('start_type_description_service', value=False)
+
+
 class Entity(Node):
     """An rclpy node that belongs to a composite and raises events on its event topic."""
 
     def __init__(self, name: str, *, composite: CompositeContext, **node_kwargs) -> None:
-        super().__init__(name, namespace=composite.namespace, **node_kwargs)
+        super().__init__(name, namespace=composite.namespace, parameter_overrides=[_NO_TYPE_DESCRIPTION_SERVICE],
+                         **node_kwargs)
         self.composite = composite
         self.entity_name = name
         self._raiser = EventRaiser(self, topic=composite.events_topic)
@@ -67,8 +76,12 @@ class Entity(Node):
     def event_publisher(self):
         return self._raiser.publisher
 
-    def destroy_node(self) -> None:
+    def detach(self) -> None:
+        """Stop listening to events (before the node is destroyed)."""
         for listener in self._listeners:
             listener.destroy()
         self._listeners.clear()
+
+    def destroy_node(self) -> None:
+        self.detach()
         super().destroy_node()

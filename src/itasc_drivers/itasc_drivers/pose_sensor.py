@@ -5,12 +5,12 @@ world frame) to the Scene: output ``pose`` with semantics ``Pose(<object>|world)
 
 from __future__ import annotations
 
-from typing import Any
-
 from geometry_msgs.msg import PoseStamped
+from rclpy.subscription import Subscription
 
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.computation.parameters import ParameterModel
 from itasc_core.itasc.entities.scene_entity import object_pose
 
 __all__ = ['PoseSensor']
@@ -18,19 +18,24 @@ __all__ = ['PoseSensor']
 
 class PoseSensor(FunctionalEntity):
     """The newest pose received on ``topic``, every tick."""
+    _subscription: Subscription | None = None
 
-    PARAMETERS = {'object': 'object', 'topic': '/object_pose'}
+    class Parameters(ParameterModel):
+        object: str = 'object'
+        """The object whose pose it measures."""
+        topic: str = '/object_pose'
+        """Where ``geometry_msgs/PoseStamped`` poses (world frame) arrive."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
         return [PortSpec(name='pose', direction='output', msg_type=PoseStamped, type='pose',
-                         semantics=object_pose(params['object']))]
+                         semantics=object_pose(params.object))]
 
-    def configure(self, params: dict[str, Any]) -> None:
-        if getattr(self, '_subscription', None) is not None:
+    def configure(self, params: Parameters) -> None:
+        if self._subscription is not None:
             self.destroy_subscription(self._subscription)
         self.latest: PoseStamped | None = None
-        self._subscription = self.create_subscription(PoseStamped, params['topic'], self._on_pose, 10)
+        self._subscription = self.create_subscription(PoseStamped, params.topic, self._on_pose, 10)
 
     def _on_pose(self, msg: PoseStamped) -> None:
         self.latest = msg

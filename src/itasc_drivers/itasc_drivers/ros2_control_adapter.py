@@ -21,57 +21,61 @@ watchdog Monitors can tell whether a silent driver came back before a recovery.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Literal
 
 import numpy as np
 from builtin_interfaces.msg import Duration
+from pydantic import Field
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from itasc_core.communication.ports import PortSpec
+from itasc_core.communication.samples import JointSample
 from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.computation.parameters import ParameterModel
 
 from .ports import driver_ports
 
 __all__ = ['Ros2ControlAdapter']
 
-INTERFACES = ('velocity', 'position', 'trajectory')
-
 
 class Ros2ControlAdapter(FunctionalEntity):
     """joint_states in; Float64MultiArray or JointTrajectory commands out, joints by name."""
+    _state_sub: Subscription | None = None
+    _publisher: Publisher | None = None
 
-    PARAMETERS = {
-        'robot': 'robot',
-        'joints': [''],
-        'joint_states_topic': '/joint_states',
-        'command_topic': '/velocity_controller/commands',
-        'interface': 'velocity',
-        'horizon': 0.1,
-    }
+    class Parameters(ParameterModel):
+        robot: str = 'robot'
+        """The robot it drives."""
+        joints: list[str] = Field(min_length=1)
+        """The controller's joints, in the order its commands have them."""
+        joint_states_topic: str = '/joint_states'
+        """Where the driver publishes ``sensor_msgs/JointState``."""
+        command_topic: str = '/velocity_controller/commands'
+        """Where commands go."""
+        interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
+        """What the controller takes: velocities or positions (``std_msgs/Float64MultiArray``), or a
+        ``trajectory_msgs/JointTrajectory``."""
+        horizon: float = Field(default=0.1, gt=0)
+        """How far ahead a position or trajectory command reaches [s]."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return driver_ports(params['robot'])
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        return driver_ports(params.robot)
 
-    def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        if params['interface'] not in INTERFACES:
-            return f"interface must be one of {INTERFACES}, got {params['interface']!r}"
-        if not [j for j in params['joints'] if j] or params['horizon'] <= 0:
-            return 'joints must name the controller joints, in its order, and horizon > 0'
-        return None
-
-    def configure(self, params: dict[str, Any]) -> None:
-        self.joints = [j for j in params['joints'] if j]
-        self.interface = params['interface']
-        self.horizon = params['horizon']
-        if getattr(self, '_state_sub', None) is not None:  # re-configured: new topics
+    def configure(self, params: Parameters) -> None:
+        self.joints = list(params.joints)
+        self.interface = params.interface
+        self.horizon = params.horizon
+        if self._state_sub is not None and self._publisher is not None:  # re-configured: new topics
             self.destroy_subscription(self._state_sub)
             self.destroy_publisher(self._publisher)
-        self._state_sub = self.create_subscription(JointState, params['joint_states_topic'], self._on_state, 10)
+        self._state_sub = self.create_subscription(JointState, params.joint_states_topic, self._on_state, 10)
         msg_type = JointTrajectory if self.interface == 'trajectory' else Float64MultiArray
-        self._publisher = self.create_publisher(msg_type, params['command_topic'], 10)
+        self._publisher = self.create_publisher(msg_type, params.command_topic, 10)
         self.measured: np.ndarray | None = None
         self._fresh = False
         self._target: np.ndarray | None = None
@@ -97,11 +101,10 @@ class Ros2ControlAdapter(FunctionalEntity):
         self._send(np.where(np.isfinite(velocity), velocity, 0.0), dt)
 
     def _report(self) -> None:
-        if self._fresh:  # only what the driver reported: a silent driver shows as stale data
+        if self._fresh and self.measured is not None:  # only what the driver reported: silence shows as stale
             self._fresh = False
-            state = JointState(name=self.joints, position=self.measured.tolist())
-            state.header.stamp = self.get_clock().now().to_msg()
-            self.outputs['joint_state'].write(state)
+            self.outputs['joint_state'].write(JointSample(self.get_clock().now().nanoseconds * 1e-9,
+                                                          tuple(self.joints), self.measured))
 
     def _send(self, velocity: np.ndarray, dt: float) -> None:
         if self.interface == 'velocity':
@@ -114,7 +117,8 @@ class Ros2ControlAdapter(FunctionalEntity):
             self._publisher.publish(Float64MultiArray(data=self._target.tolist()))
             return
         seconds = int(self.horizon)
-        point = JointTrajectoryPoint(positions=(self.measured + velocity * self.horizon).tolist(),
+        measured = self.measured if self.measured is not None else np.zeros(len(self.joints))  # sent once reported
+        point = JointTrajectoryPoint(positions=(measured + velocity * self.horizon).tolist(),
                                      velocities=velocity.tolist(),
                                      time_from_start=Duration(sec=seconds, nanosec=int((self.horizon - seconds) * 1e9)))
         self._publisher.publish(JointTrajectory(joint_names=self.joints, points=[point]))

@@ -6,7 +6,8 @@ its own frame, as the Solver commands it), within the joint velocity and positio
 URDF's, or those given as ``lower``/``upper``/``velocity_limit``, one value per joint, e.g. the
 application model's overrides), and publishes the joint state (``sensor_msgs/JointState`` with names, positions and the
 applied velocities), also on ``<composite namespace>/<robot>/joint_states`` for
-robot_state_publisher and RViz. Input ``command``: the Solver's ``JointVelocities(program)``, from which it
+robot_state_publisher and RViz (an output port: published while someone listens there). Input ``command``: the Solver's
+``JointVelocities(program)``, from which it
 takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)``.
 
 ``main()`` runs one standalone, as its own process, on plain topics.
@@ -17,16 +18,20 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from typing import Any
+from dataclasses import replace
+from typing import Literal
 
 import numpy as np
 import rclpy
+from pydantic import Field
+from rclpy.clock import ClockType, ROSClock
 from rclpy.executors import ExternalShutdownException
-from sensor_msgs.msg import JointState
 
 from itasc_core.communication.dds import configure_dds
-from itasc_core.communication.ports import PortSpec
+from itasc_core.communication.ports import OutputPort, PortSpec
+from itasc_core.communication.samples import JointSample
 from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.computation.parameters import ParameterModel
 from itasc_core.entity import CompositeContext
 from itasc_core.itasc.robot import Robot
 
@@ -38,66 +43,98 @@ __all__ = ['SimulatedRobot', 'main']
 class SimulatedRobot(FunctionalEntity):
     """Integrates commanded joint velocities; publishes the joint state."""
 
-    PARAMETERS = {
-        'robot': 'robot',
-        'urdf': '',
-        'base': 'fixed',
-        'initial_names': [''],
-        'initial_positions': [0.0],
-        # one value per joint of the robot, or the single default: the URDF's limits
-        'lower': [math.nan],
-        'upper': [math.nan],
-        'velocity_limit': [math.nan],
-    }
+    class Parameters(ParameterModel):
+        robot: str = 'robot'
+        """The robot's name."""
+        urdf: str = ''
+        """Its URDF file (absolute path)."""
+        base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+        """Its base: fixed, or a mobile base's joints."""
+        initial: dict[str, float] = Field(default_factory=dict)
+        """Initial joint positions by joint name [rad or m] (the others: 0, within the limits)."""
+        lower: list[float] = Field(default_factory=list)
+        """Lowest position per joint [rad or m]; none: the URDF's."""
+        upper: list[float] = Field(default_factory=list)
+        """Highest position per joint; none: the URDF's."""
+        velocity_limit: list[float] = Field(default_factory=list)
+        """Largest speed per joint; none: the URDF's."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return driver_ports(params['robot'])
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        return driver_ports(params.robot)
 
-    def configure(self, params: dict[str, Any]) -> None:
+    def configure(self, params: Parameters) -> None:
         if getattr(self, 'robot', None) is not None:
             return  # the simulated world keeps its state across re-configuration
-        self.robot = Robot(params['robot'], params['urdf'], base=params['base'])
+        self.robot = Robot(params.robot, params.urdf, base=params.base)
         for key in ('lower', 'upper', 'velocity_limit'):
-            if len(params[key]) == len(getattr(self.robot, key)):
-                getattr(self.robot, key)[:] = params[key]
-        self.robot.set_positions([n for n in params['initial_names'] if n], params['initial_positions'])
+            if len(getattr(params, key)) == len(getattr(self.robot, key)):
+                getattr(self.robot, key)[:] = getattr(params, key)
+        self.robot.set_positions(list(params.initial), list(params.initial.values()))
         self.robot.set_position_vector(self._within_limits(self.robot.positions))
         self.velocity = np.zeros(self.robot.nv)
         self._last_t: float | None = None
-        # the conventional topic robot_state_publisher and RViz read, in the robot's namespace
-        self._joint_states = self.create_publisher(
-            JointState, f"{self.composite.namespace.rstrip('/')}/{params['robot']}/joint_states", 10)
+        self._names = tuple(self.robot.joint_names)
+        self._order: tuple[tuple[str, ...], np.ndarray] = ((), np.zeros(0, dtype=int))
+        self._stamp_clock = self.get_clock()
+        # the conventional topic robot_state_publisher and RViz read, in the robot's namespace: an
+        # output (not one the model connects) that a recorder in this process taps
+        spec = next(s for s in self.port_specs(params) if s.name == 'joint_state')
+        self._joint_states = OutputPort(self, replace(spec, name='joint_states').with_id(
+            f"{self.composite.namespace.rstrip('/')}/{params.robot}/joint_states"))
 
     def _within_limits(self, positions: np.ndarray) -> np.ndarray:
-        return np.clip(positions, self.robot.lower, self.robot.upper)
+        return np.minimum(np.maximum(positions, self.robot.lower), self.robot.upper)
 
     def update(self, t: float) -> None:
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
         self._last_t = t
         command = self.inputs['command'].latest
-        velocity = np.zeros(self.robot.nv)
-        if command is not None:
-            by_name = dict(zip(command.name, command.velocity))
-            velocity = np.array([by_name.get(n, 0.0) for n in self.robot.joint_names], dtype=float)
-            velocity = np.where(np.isfinite(velocity), velocity, 0.0)
-            velocity = np.clip(velocity, -self.robot.velocity_limit, self.robot.velocity_limit)
+        robot = self.robot
+        if command is None:
+            velocity = np.zeros(robot.nv)
+        else:
+            velocity = self._own(command)
+            if not math.isfinite(velocity.sum()):  # one check for the usual case: all finite
+                velocity = np.where(np.isfinite(velocity), velocity, 0.0)
+            velocity = np.minimum(np.maximum(velocity, -robot.velocity_limit), robot.velocity_limit)
         if dt > 0.0:
-            self.robot.integrate(velocity, dt)
-            self.robot.set_position_vector(self._within_limits(self.robot.positions))
+            robot.integrate(velocity, dt)
+            robot.set_position_vector(self._within_limits(robot.positions))
         self.velocity = velocity
         self._publish()
 
+    def _own(self, command: JointSample) -> np.ndarray:
+        """This robot's joint velocities in a command (by name; joints it does not name: 0)."""
+        if command.name != self._order[0]:
+            where = {n: i for i, n in enumerate(command.name)}
+            # a missing joint reads the appended 0
+            self._order = (command.name, np.array([where.get(n, len(command.name)) for n in self._names], dtype=int))
+        velocity = command.velocity
+        if len(velocity) != len(command.name):
+            return np.zeros(self.robot.nv)
+        return np.append(velocity, 0.0)[self._order[1]]
+
+    def _now(self) -> float:
+        """The node's clock (the system's, read directly, unless the node uses simulated time)."""
+        clock = self._stamp_clock
+        if clock.clock_type == ClockType.SYSTEM_TIME or (isinstance(clock, ROSClock) and not clock.ros_time_is_active):
+            return time.time()
+        return clock.now().nanoseconds * 1e-9
+
     def _publish(self) -> None:
-        msg = JointState(name=list(self.robot.joint_names), position=self.robot.positions.tolist(),
-                         velocity=self.velocity.tolist())
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.outputs['joint_state'].write(msg)
-        self._joint_states.publish(msg)
+        sample = JointSample(self._now(), self._names, self.robot.positions, velocity=self.velocity)
+        self.outputs['joint_state'].write(sample)
+        self._joint_states.write(sample)
 
     def disengage(self) -> None:
         self.velocity = np.zeros(self.robot.nv)
         self._publish()
+
+    def destroy_node(self) -> None:
+        if getattr(self, '_joint_states', None) is not None:
+            self._joint_states.destroy()
+        super().destroy_node()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -118,8 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init()
     node = SimulatedRobot(args.robot, composite=CompositeContext(name='sim', namespace=args.namespace),
                           parameters={'robot': args.robot, 'urdf': args.urdf, 'base': args.base,
-                                      'initial_names': list(initial) or [''],
-                                      'initial_positions': [float(v) for v in initial.values()] or [0.0]})
+                                      'initial': {k: float(v) for k, v in initial.items()}})
     node.inputs['command'].connect(args.command_topic)
     start = time.monotonic()
     node.create_timer(1.0 / args.rate, lambda: node.update(time.monotonic() - start))

@@ -1,1 +1,2 @@
-"""Task composites of iTaSC-ROS2: virtual kinematic chains, constraint outputs, constraint controllers, setpoint generators."""
+"""Task composites of iTaSC-ROS2: virtual kinematic chains, constraint outputs, constraint controllers, setpoint
+generators."""

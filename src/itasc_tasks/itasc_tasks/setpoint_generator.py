@@ -5,28 +5,37 @@ velocity feed-forward. Values are numpy vectors (output space of the Task) or ``
 Cartesian target: the desired pose of o2 in o1); for SE3 the velocity is the 6-D twist
 ``[d/dt p ; omega]`` in o1 coordinates, matching ``CartesianVKC`` rows. Point-to-point
 generators interpolate position linearly and orientation along the geodesic (exp/log on SO(3)).
-A generator that is not ``started`` is started by its Task from the current output.
+A generator that is not ``started`` is started by its Task from the current output
+(:func:`start_value`; a point-to-point motion and ``HoldSetpoint`` again whenever the Task is
+activated); :class:`OutputSetpoint` turns what it gives into output space, the same for
+the Setpoint Generator entity and :class:`~itasc_tasks.task.TaskComputation`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Protocol
+from typing import Any, Protocol, TypeAlias
 
 import numpy as np
 import pinocchio as pin
+from itasc_core.itasc.coordinates import features_pose, pose_coordinates, pose_features
 
-__all__ = ['FixedSetpoint', 'MinimumJerkSetpoint', 'TrapezoidalSetpoint', 'PeriodicSetpoint',
-           'TopicSetpoint', 'SetpointGenerator', 'Value']
+from .constraint_output import Selection
 
-Value = np.ndarray | pin.SE3
+__all__ = ['SetpointGenerator', 'Value', 'FixedSetpoint', 'HoldSetpoint', 'PointToPoint', 'MinimumJerkSetpoint',
+           'TrapezoidalSetpoint', 'PeriodicSetpoint', 'TopicSetpoint', 'OutputSetpoint', 'start_value']
+
+#: A vector in output space, or a ``pin.SE3`` (pinocchio has no type information: Any to mypy).
+Value: TypeAlias = np.ndarray | Any
 
 
 class SetpointGenerator(Protocol):
     """What a Task needs from a setpoint generator."""
 
-    started: bool
+    @property
+    def started(self) -> bool:
+        """Whether it was started (else its Task starts it, :func:`start_value`)."""
 
     def start(self, value: Value, t: float) -> None: ...
 
@@ -58,7 +67,20 @@ class FixedSetpoint:
         return self.value, self._velocity
 
 
-class _PointToPoint:
+class HoldSetpoint(FixedSetpoint):
+    """Holds the output where the Task was when it started the generator (each time it does)."""
+
+    def __init__(self) -> None:
+        super().__init__(np.zeros(0))
+        self.started = False
+
+    def start(self, value: Value, t: float) -> None:
+        self.value = _as_value(value)
+        self._velocity = _zero_velocity(self.value)
+        self.started = True
+
+
+class PointToPoint:
     """Smooth motion from the start value to ``target`` along a scalar profile s(t) in [0, 1]."""
 
     def __init__(self, target: Value | Sequence[float] | float, *, duration: float = 0.0,
@@ -74,9 +96,8 @@ class _PointToPoint:
         self._delta = np.zeros(0)  # vector: target - start; SE3: [dp, log3(R0^T R1)]
         self.period = 0.0  # actual duration of the current motion
 
-    def retarget(self, target: Value | Sequence[float] | float) -> None:
-        """New target: the Task restarts the motion from the current output."""
-        self.target = _as_value(target)
+    def restart(self) -> None:
+        """The Task restarts the motion to the same target from the current output."""
         self.started = False
 
     def start(self, value: Value, t: float) -> None:
@@ -91,11 +112,13 @@ class _PointToPoint:
             lengths = np.abs(self._delta)
         self.period = self._period(lengths)
 
-    def _normalised_limit(self, lengths: np.ndarray, limit: float | Sequence[float]) -> float:
-        """The tightest path-parameter rate allowed by per-component limits."""
-        limit = np.broadcast_to(np.asarray(limit, dtype=float), lengths.shape)
+    def _normalised_limit(self, lengths: np.ndarray, limit: float | Sequence[float] | None) -> float:
+        """The tightest path-parameter rate allowed by per-component limits (None: unlimited)."""
+        if limit is None:
+            return math.inf
+        limits = np.broadcast_to(np.asarray(limit, dtype=float), lengths.shape)
         moving = lengths > 1e-12
-        return float(np.min(limit[moving] / lengths[moving])) if moving.any() else math.inf
+        return float(np.min(limits[moving] / lengths[moving])) if moving.any() else math.inf
 
     def _period(self, lengths: np.ndarray) -> float:
         raise NotImplementedError
@@ -112,7 +135,7 @@ class _PointToPoint:
         return self._from + s * self._delta, sdot * self._delta
 
 
-class MinimumJerkSetpoint(_PointToPoint):
+class MinimumJerkSetpoint(PointToPoint):
     """Minimum-jerk point-to-point motion, s = 10 tau^3 - 15 tau^4 + 6 tau^5 (peak velocity
     1.875 x the mean), time-bounded (``duration``) and/or velocity-bounded (``max_velocity``)."""
 
@@ -128,7 +151,7 @@ class MinimumJerkSetpoint(_PointToPoint):
         return s, sdot
 
 
-class TrapezoidalSetpoint(_PointToPoint):
+class TrapezoidalSetpoint(PointToPoint):
     """Trapezoidal-velocity point-to-point motion with per-component ``max_velocity`` and
     ``max_acceleration``, stretched (same acceleration, lower cruise speed) to ``duration``."""
 
@@ -210,3 +233,32 @@ class TopicSetpoint:
     def __call__(self, t: float) -> tuple[Value, np.ndarray]:
         assert self.value is not None, 'TopicSetpoint called before any value'
         return self.value, _zero_velocity(self.value) if self.velocity is None else self.velocity
+
+
+def start_value(generator: SetpointGenerator, *, features: np.ndarray, output: np.ndarray,
+                rotation: int | None) -> Value:
+    """Where ``generator`` starts from: for a pose target the current pose of o2 in o1 (from the
+    chain's ``features``, a rotation triple at row ``rotation`` or log6), else the current ``output``."""
+    if isinstance(generator, PointToPoint) and isinstance(generator.target, pin.SE3):
+        return features_pose(features, coordinates=pose_coordinates(rotation))
+    return output
+
+
+class OutputSetpoint:
+    """A generator's ``(value, velocity)`` in output space: a pose of o2 in o1 and its twist through
+    the chain's pose coordinates (rotation triple at row ``rotation``, or log6), then the Constraint
+    Output's selection; a vector is already in output space. A fixed pose is converted once."""
+
+    def __init__(self) -> None:
+        self._pose: Any = None
+        self._rotation: int | None = None
+        self._features = np.zeros(0)
+
+    def __call__(self, value: Value, velocity: np.ndarray, *, selection: Selection,
+                 rotation: int | None) -> tuple[np.ndarray, np.ndarray]:
+        if isinstance(value, np.ndarray):
+            return value, velocity
+        if value is not self._pose or rotation != self._rotation:
+            self._pose, self._rotation = value, rotation
+            self._features = pose_features(value, coordinates=pose_coordinates(rotation))
+        return selection.select(self._features), selection.select(velocity)

@@ -1,112 +1,127 @@
-"""Virtual Kinematic Chains (paper §4.1 "VKC"): the task space between two object frames o1, o2,
-its feature coordinates chi_f and their Jacobian on the program-wide joint velocities.
+"""Virtual Kinematic Chains (paper §4.1 "VKC"): the feature coordinates chi_f of a Task's chain and
+their Jacobian J_f on the program-wide joint velocities (d chi_f / dt = J_f qdot, except for rotation
+rows, see :class:`CartesianVKC`), as functions of what the chain reads.
 
-After ``compute(scene)``: ``features`` (chi_f), ``jacobian`` (d chi_f / dt = jacobian @ qdot,
-except for rotation rows, see ``CartesianVKC``) and ``names`` (one per feature coordinate).
+A chain between two object frames o1, o2 (:class:`VirtualKinematicChain`) reads their relation: the
+pose ``T_{o1,o2}`` of o2 in o1 and its Jacobian, the twist ``[d/dt p ; omega]`` of o2 relative to o1
+expressed in o1 (``Scene.relative_jacobian``, the Scene entity's ``relation_<task>``). A joint chain
+(:class:`JointChain`) reads the program's joint names and positions. The VKC entity and
+:class:`~itasc_tasks.task.TaskComputation` call the same chains.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Protocol, TypeAlias
 
 import numpy as np
 import pinocchio as pin
-from itasc_core.itasc.scene import Scene
+from itasc_core.itasc.coordinates import POSE_FEATURES, Coordinates, pose_features
 
 from .constraint_output import compact_index
 
-__all__ = ['CartesianVKC', 'DistanceVKC', 'JointVKC']
+__all__ = ['VirtualKinematicChain', 'JointChain', 'Features', 'CartesianVKC', 'DistanceVKC', 'JointVKC']
+
+#: ``(chi_f, J_f)``: feature coordinates and their Jacobian on the program-wide joint velocities.
+Features: TypeAlias = tuple[np.ndarray, np.ndarray]
+
+
+class VirtualKinematicChain(Protocol):
+    """A chain between o1 and o2: ``(chi_f, J_f)`` from the relation ``T_{o1,o2}`` and its Jacobian."""
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """One per feature coordinate."""
+
+    @property
+    def rotation(self) -> int | None:
+        """First row of a complete ``(rx, ry, rz)`` log3 triple in chi_f, or None."""
+
+    def __call__(self, pose: pin.SE3, jacobian: np.ndarray, /) -> Features: ...
+
+
+class JointChain(Protocol):
+    """A chain on joints: ``(chi_f, J_f)`` from the program's joint names and positions."""
+
+    @property
+    def names(self) -> tuple[str, ...]: ...
+
+    @property
+    def rotation(self) -> None: ...
+
+    def __call__(self, joint_names: Sequence[str], q: np.ndarray, /) -> Features: ...
 
 
 class CartesianVKC:
-    """Full 6-D chain from o1 to o2: the pose ``T_{o1,o2}`` of o2 expressed in o1.
+    """Full 6-D chain from o1 to o2: the pose ``T_{o1,o2}`` of o2 expressed in o1, in the coordinates
+    of :mod:`itasc_core.itasc.coordinates`.
 
-    ``coordinates='xyz_log3'`` (default): chi_f = [p, log3(R)] (names x y z rx ry rz); Jacobian
-    rows = ``[d/dt p ; omega]``, omega the angular velocity of o2 relative to o1 in o1
-    coordinates (``Scene.relative_jacobian``). The rotation rows are *not* d/dt log3(R): the
-    controller's rotation error must be ``log3(R_d R^T)`` (in o1), which is what
-    ``constraint_controller`` computes for a complete rx, ry, rz triple.
+    ``coordinates='xyz_log3'`` (default): chi_f = [p, log3(R)] (names x y z rx ry rz); J_f is the
+    relation's Jacobian ``[d/dt p ; omega]``, omega the angular velocity of o2 relative to o1 in o1.
+    The rotation rows are *not* d/dt log3(R): the controller's rotation error must be
+    ``log3(R_d R^T)`` (in o1), which :func:`~itasc_tasks.constraint_controller.control_error`
+    computes for a complete rx, ry, rz triple (``rotation``).
 
     ``coordinates='log6'``: chi_f = log6(T_{o1,o2}) (pink's frame-task error, body twist
     coordinates of o2) with the exact Jacobian ``Jlog6(T) J_body``; plain vector arithmetic then
     applies to errors (straight lines in exponential coordinates).
     """
 
-    names = ('x', 'y', 'z', 'rx', 'ry', 'rz')
+    names = POSE_FEATURES
 
-    def __init__(self, o1: str, o2: str, *, coordinates: str = 'xyz_log3') -> None:
+    def __init__(self, *, coordinates: Coordinates = 'xyz_log3') -> None:
         if coordinates not in ('xyz_log3', 'log6'):
             raise ValueError(f"coordinates must be 'xyz_log3' or 'log6', got {coordinates!r}")
-        self.o1, self.o2, self.coordinates = o1, o2, coordinates
-        self.rotation_names = ('rx', 'ry', 'rz') if coordinates == 'xyz_log3' else ()
-        self.pose = pin.SE3.Identity()
-        self.features = np.zeros(6)
-        self.jacobian = np.zeros((6, 0))
+        self.coordinates: Coordinates = coordinates
+        self.rotation = 3 if coordinates == 'xyz_log3' else None
 
-    def features_of(self, pose: pin.SE3) -> np.ndarray:
-        """Feature coordinates of a relative pose (to turn an SE3 setpoint into chi_f,d)."""
-        if self.coordinates == 'log6':
-            return pin.log6(pose).vector
-        return np.concatenate([pose.translation, pin.log3(pose.rotation)])
-
-    def compute(self, scene: Scene) -> None:
-        self.pose = scene.relative_pose(self.o1, self.o2)
-        self.features = self.features_of(self.pose)
-        J = scene.relative_jacobian(self.o1, self.o2)
+    def __call__(self, pose: pin.SE3, jacobian: np.ndarray, /) -> Features:
+        features = pose_features(pose, coordinates=self.coordinates)
         if self.coordinates == 'log6':  # body twist of o2 relative to o1, then d log6
-            J = pin.Jlog6(self.pose) @ np.matmul(self.pose.rotation.T,
-                                                 J.reshape(2, 3, -1)).reshape(6, -1)
-        self.jacobian = J
+            jacobian = pin.Jlog6(pose) @ np.matmul(pose.rotation.T, jacobian.reshape(2, 3, -1)).reshape(6, -1)
+        return features, jacobian
 
 
 class DistanceVKC:
-    """1-D chain: distance from o1 to o2's origin.
-
-    Point-point (``normal=None``): ``chi_f = ||p||``, p = o2's origin in o1. Point-plane: the
-    signed distance ``n . p`` of o2's origin to the plane through o1's origin with unit
-    ``normal`` given in o1 coordinates.
-    """
+    """1-D chain: the distance between the origins of o1 and o2, ``chi_f = ||p||``, p = o2's origin
+    in o1 (a point-plane distance is the task type ``point_plane``)."""
 
     names = ('distance',)
-    rotation_names = ()
+    rotation = None
 
-    def __init__(self, o1: str, o2: str, *, normal: Sequence[float] | None = None) -> None:
-        self.o1, self.o2 = o1, o2
-        self.normal = None if normal is None else np.asarray(normal, float) / np.linalg.norm(normal)
-        self.features = np.zeros(1)
-        self.jacobian = np.zeros((1, 0))
-
-    def compute(self, scene: Scene) -> None:
-        p = scene.relative_pose(self.o1, self.o2).translation
-        Jp = scene.relative_jacobian(self.o1, self.o2)[:3]
-        if self.normal is not None:
-            direction = self.normal
-            self.features[0] = direction @ p
-        else:
-            distance = float(np.linalg.norm(p))
-            direction = p / distance if distance > 1e-12 else np.zeros(3)
-            self.features[0] = distance
-        self.jacobian = (direction @ Jp)[None, :]
+    def __call__(self, pose: pin.SE3, jacobian: np.ndarray, /) -> Features:
+        p = pose.translation
+        distance = float(np.linalg.norm(p))
+        direction = p / distance if distance > 1e-12 else np.zeros(3)
+        return np.array([distance]), (direction @ jacobian[:3])[None, :]
 
 
 class JointVKC:
-    """Joint-space chain: chi_f = positions of the selected joints (all joints if ``joints`` is
-    None), Jacobian = selection rows of the identity."""
+    """Joint-space chain: chi_f = positions of ``joints``, J_f = their rows of the identity on the
+    program's joints (bound again when those change)."""
 
-    rotation_names = ()
+    rotation = None
 
-    def __init__(self, joints: Sequence[str] | None = None) -> None:
-        self.joints = None if joints is None else list(joints)
-        self.names: tuple[str, ...] = tuple(self.joints or ())
-        self.features = np.zeros(len(self.names))
-        self.jacobian = np.zeros((len(self.names), 0))
-        self._version = -1
+    def __init__(self, joints: Sequence[str]) -> None:
+        self.names = tuple(joints)
+        self._joint_names: Sequence[str] | None = None  # bound to these (the same object: no check)
+        self._program: tuple[str, ...] = ()
         self._index: slice | np.ndarray = slice(0)
+        self._jacobian = np.zeros((len(self.names), 0))
 
-    def compute(self, scene: Scene) -> None:
-        if self._version != scene.version:  # (re)bind to the program-wide joint vector
-            self.names = tuple(scene.joint_names if self.joints is None else self.joints)
-            self._index = compact_index(list(scene.joint_indices(self.names)))
-            self.jacobian = np.eye(scene.nv)[self._index]
-            self._version = scene.version
-        self.features = scene.q[self._index].copy()
+    def __call__(self, joint_names: Sequence[str], q: np.ndarray, /) -> Features:
+        if joint_names is not self._joint_names:
+            self._bind(joint_names)
+        return q[self._index].copy(), self._jacobian
+
+    def _bind(self, joint_names: Sequence[str]) -> None:
+        program = tuple(joint_names)
+        if program != self._program or self._joint_names is None:
+            index = {n: i for i, n in enumerate(program)}
+            missing = [n for n in self.names if n not in index]
+            if missing:
+                raise KeyError(f'no joints {missing} in the program; joints: {program}')
+            self._index = compact_index([index[n] for n in self.names])
+            self._jacobian = np.eye(len(program))[self._index]
+            self._program = program
+        self._joint_names = joint_names

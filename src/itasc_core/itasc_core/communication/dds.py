@@ -16,14 +16,23 @@ their own (``FASTRTPS_DEFAULT_PROFILES_FILE``), it points Fast DDS at ours:
   range becomes ``SYSTEM_DEFAULT`` so that rmw_fastrtps leaves the profile's transports alone.
 
 Every profile asks for 4 MiB socket receive buffers, which the kernel doubles (its default is
-208 KiB, about 20 ms of a 10,000 events/s storm): a process busy for longer than that would have
-the kernel drop datagrams, and a reliable reader repairs a drop only after the writer's next
-heartbeat, by when a fast writer may have dropped the sample from its history (a storm at
-10,000/s on a 2-core machine: 300,000 kernel drops with 208 KiB, 30,000-60,000 with 8 MiB; at
-5,000/s none). ``fastdds.xml`` sets it with ``sockets_size`` on the builtin transports (which sizes
-the send buffers too; the participant's ``listenSocketBufferSize`` is not applied to them), the
-others with the transport's ``receiveBufferSize``. Linux caps the size at ``net.core.rmem_max``;
-raise it where it is lower (README).
+208 KiB, about 20 ms of a 10,000 events/s storm), so that a process busy for a moment does not have
+the kernel drop datagrams. ``fastdds.xml`` sets it with ``sockets_size`` on the builtin transports
+(which sizes the send buffers too; the participant's ``listenSocketBufferSize`` is not applied to
+them), the others with the transport's ``receiveBufferSize``. Linux caps the size at
+``net.core.rmem_max``; raise it where it is lower (README).
+
+A process that stays behind longer still loses datagrams (a storm of 10,000 events/s for 10 s on a
+loaded 2-core machine: 50,000-240,000 dropped at the bootstrap). One reason is rmw_fastrtps
+(Jazzy): with a callback-based executor (rclpy's EventsExecutor) every sample that arrives makes it
+count the reader's unread samples (``get_unread_count(true)``), a walk over every sample not yet
+taken, so the DDS receive thread slows down as the backlog grows. A reliable reader asks for a lost
+datagram again when the writer's heartbeat tells it what was sent, at most 256 sequence numbers per
+answer; Fast DDS's default heartbeat period of 3 s repairs less than 100 events a second, by when a
+fast writer has long dropped them from its history. So every profile gives every writer a
+heartbeat every 0.1 s (a default ``data_writer`` profile; heartbeats are only sent while a reader
+has not acknowledged everything), and the event queues hold a whole storm
+(:data:`.qos.EVENT_DEPTH`): nothing is lost, the readers catch up after the storm.
 
 Both announce their participant every 0.5 s instead of Fast DDS's 3 s. A participant's first
 announcements are sometimes missed by a peer that is busy starting (seen in about half of the runs

@@ -16,19 +16,23 @@ created in a context without a hub subscribes on its own node as before.
 
 from __future__ import annotations
 
+import functools
 import weakref
 from typing import Callable
 
 from rclpy.context import Context
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 
 from itasc_msgs.msg import Event
 
-from .qos import EVENT_QOS
+from .qos import EVENT_LISTENER_QOS
 
 __all__ = ['EventHub']
 
 Receiver = Callable[[Event, str], None]
+#: ``gate(node, event, topic, handle)``: see :attr:`EventHub.gate`.
+Gate = Callable[[Node, Event, str, Callable[[], None]], bool]
 
 
 class EventHub:
@@ -38,9 +42,17 @@ class EventHub:
 
     def __init__(self, node: Node) -> None:
         self._node = node
-        self._subscriptions: dict[str, object] = {}
+        self._subscriptions: dict[str, Subscription] = {}
         #: by topic, in registration order (a dict: membership is checked per event and receiver)
         self._receivers: dict[str, dict[Receiver, None]] = {}
+        #: Replay seam (:mod:`itasc_bringup.replay`): when set, every event a listener of this process
+        #: accepts is first offered to ``gate(node, msg, topic, handle)`` (``node`` owns the listener);
+        #: a gate that returns True holds the event and calls ``handle()`` when it is due. None: events
+        #: are handled on arrival.
+        self.gate: Gate | None = None
+        #: How many events this process's raisers raised (replay seam: while it does not change,
+        #: nothing new can be waiting on the process's event topics).
+        self.raised = 0
 
     #: The hub's node: hidden (``ros2 node list -a`` shows it), in the namespace of the composite
     #: the process was started for, where a parent's Composer looks for it.
@@ -66,7 +78,7 @@ class EventHub:
         if topic not in self._subscriptions:
             self._receivers[topic] = {}
             self._subscriptions[topic] = self._node.create_subscription(
-                Event, topic, lambda msg, topic=topic: self._dispatch(msg, topic), EVENT_QOS)
+                Event, topic, functools.partial(self._dispatch, topic=topic), EVENT_LISTENER_QOS)
         self._receivers[topic][receiver] = None
 
     def remove(self, topic: str, receiver: Receiver) -> None:

@@ -7,9 +7,10 @@ Two classes of events: *common* events are buffered and processed at the receive
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections import deque
-from typing import Callable, ClassVar, Iterable
+from typing import Callable, Iterable
 
 from rclpy.node import Node
 
@@ -17,7 +18,7 @@ from itasc_msgs.msg import Event
 
 from .event_hub import EventHub
 from .event_names import is_priority
-from .qos import EVENT_QOS
+from .qos import EVENT_LISTENER_QOS, EVENT_QOS
 
 __all__ = ['Event', 'EventRaiser', 'EventListener', 'events_topic']
 
@@ -29,16 +30,13 @@ def events_topic(namespace: str) -> str:
 class EventRaiser:
     """Publishes events of one source on one composite's event topic."""
 
-    #: How many events this process raised (replay seam, :mod:`itasc_bringup.replay`: while it does
-    #: not change, nothing new can be waiting on the process's event topics).
-    raised: ClassVar[int] = 0
-
     def __init__(self, node: Node, *, topic: str, source: str | None = None) -> None:
         self._node = node
         self._source = source or node.get_fully_qualified_name()
         self._publisher = node.create_publisher(Event, topic, EVENT_QOS)
         self._seq = 0
         self._lock = threading.Lock()
+        self._hub = EventHub.of(node.context)  # counts what the process raised
         self.topic = topic
 
     @property
@@ -56,7 +54,8 @@ class EventRaiser:
             msg.seq = self._seq
             msg.stamp = self._node.get_clock().now().to_msg()
             self._publisher.publish(msg)
-            EventRaiser.raised += 1
+            if self._hub is not None:
+                self._hub.raised += 1
         return msg
 
     def destroy(self) -> None:
@@ -77,12 +76,6 @@ class EventListener:
     :class:`~itasc_core.entity.Entity` destroys its listeners with itself).
     """
 
-    #: Replay seam (:mod:`itasc_bringup.replay`): when set, every event a listener accepts is first
-    #: offered to ``gate(node, msg, topic, handle)`` (``node`` owns the listener); a gate that
-    #: returns True holds the event and calls ``handle()`` when it is due. None: events are
-    #: handled on arrival.
-    gate: ClassVar[Callable[[Node, Event, str, Callable[[], None]], bool] | None] = None
-
     def __init__(
         self,
         node: Node,
@@ -102,7 +95,7 @@ class EventListener:
         self.lost = 0
         self._node = node
         self._topics = list(topics)
-        self._hub = EventHub.of(node.context)
+        self._hub = self._gates = EventHub.of(node.context)
         if self._hub is not None:
             for topic in self._topics:
                 self._hub.add(topic, self._receive)
@@ -110,7 +103,7 @@ class EventListener:
         else:
             self._subscriptions = [
                 node.create_subscription(
-                    Event, topic, lambda msg, topic=topic: self._receive(msg, topic), EVENT_QOS)
+                    Event, topic, functools.partial(self._receive, topic=topic), EVENT_LISTENER_QOS)
                 for topic in self._topics
             ]
 
@@ -136,7 +129,7 @@ class EventListener:
         self._last_seq[key] = msg.seq
         if self._accept is not None and not self._accept(msg.name):
             return
-        gate = EventListener.gate
+        gate = self._gates.gate if self._gates is not None else None
         if gate is not None and gate(self._node, msg, topic, lambda: self._handle(msg)):
             return
         self._handle(msg)

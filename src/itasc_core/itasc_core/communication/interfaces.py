@@ -55,7 +55,8 @@ def interface(name: str, kind: Literal['msg', 'srv']) -> type:
 def field_type(cls: type, path: str) -> str:
     """The ROS type (``boolean``, ``double``, ``string``, ...) of field ``path`` (``data``,
     ``header.frame_id``) of message class ``cls`` (a service's ``Request``)."""
-    current, ros_type = cls, ''
+    current: Any = cls
+    ros_type = ''
     for k, part in enumerate(path.split('.')):
         if current is None:
             raise InterfaceError(f"field '{'.'.join(path.split('.')[:k])}' is a {ros_type}: it has no field "

@@ -6,27 +6,36 @@ platform type, here a ROS 2 message class), ``semantics`` (the geometric semanti
 that connected ports agree on all of it before connecting them.
 
 Locality is a deployment choice: an input whose output lives in the same process is linked to it
-directly (the message object is handed over, no serialisation, no executor hop); otherwise it
-subscribes to the output's topic over DDS. An output publishes on DDS only while someone outside
-the process listens (another process, a recorder), so co-located connections pay for nothing
-they do not need.
+directly (the sample object is handed over, :mod:`.samples`: no message built, no serialisation,
+no executor hop); otherwise it subscribes to the output's topic over DDS and turns each message
+into its sample. An output builds and publishes the ROS message only while a DDS reader listens
+(another process, ``ros2 topic echo``), so co-located connections pay for nothing they do not
+need. Observers in the process (the recorder, the console) *tap* an output instead of reading it
+over DDS (:meth:`OutputPort.tap`): they get every sample, and the tick pays no DDS send for them.
 """
 
 from __future__ import annotations
 
+import functools
+import threading
 import time
+import weakref
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
+from rclpy.context import Context
 from rclpy.node import Node
 
 from .qos import DATA_QOS
+from .samples import as_message, as_sample
 
 __all__ = [
     'PortSpec',
     'InputPort',
     'OutputPort',
     'LocalBus',
+    'ListenedPublisher',
     'SemanticMismatch',
     'check_connection',
 ]
@@ -84,40 +93,103 @@ def _normalise(semantics: str) -> str:
 
 
 class LocalBus:
-    """The outputs living in this process, by topic: the in-process fast path."""
+    """The outputs living in one process, by topic: the in-process fast path. There is one per ROS
+    context (the process's runtime, :class:`~itasc_core.composition.deployment.Runtime`, holds it
+    as ``bus``): two contexts in one interpreter (a test's, a replay's) never link each other's ports.
 
-    _outputs: dict[str, 'OutputPort'] = {}
+    Outputs built off the tick path for a run-time re-composition (:meth:`deferred`) are not
+    registered when they are created: the Composer registers them when it switches to them."""
+
+    _buses: 'weakref.WeakKeyDictionary[Context, LocalBus]' = weakref.WeakKeyDictionary()
+    _deferring = threading.local()
+
+    def __init__(self) -> None:
+        self._outputs: dict[str, OutputPort] = {}
+        self._watchers: list[Callable[[OutputPort], None]] = []
 
     @classmethod
-    def register(cls, port: 'OutputPort') -> None:
-        cls._outputs[port.topic] = port
+    def of(cls, context: Context) -> 'LocalBus':
+        """The bus of the process whose ROS context is ``context``."""
+        bus = cls._buses.get(context)
+        if bus is None:
+            bus = cls._buses[context] = cls()
+        return bus
+
+    def watch(self, watcher: Callable[['OutputPort'], None]) -> Callable[[], None]:
+        """Call ``watcher(port)`` for every output registered from now on; returns what ends it."""
+        self._watchers.append(watcher)
+        return lambda: self._watchers.remove(watcher) if watcher in self._watchers else None
 
     @classmethod
-    def unregister(cls, port: 'OutputPort') -> None:
-        if cls._outputs.get(port.topic) is port:
-            del cls._outputs[port.topic]
+    @contextmanager
+    def deferred(cls) -> Iterator[list['OutputPort']]:
+        """Within the block, outputs this thread creates are collected in the list yielded instead
+        of being registered (the Composer registers them when it switches to them)."""
+        ports: list[OutputPort] = []
+        cls._deferring.ports = ports
+        try:
+            yield ports
+        finally:
+            cls._deferring.ports = None
 
-    @classmethod
-    def lookup(cls, topic: str) -> 'OutputPort | None':
-        return cls._outputs.get(topic)
+    def replace(self, port: 'OutputPort') -> None:
+        """Register ``port`` in place of the output of its topic, whose in-process links and taps it
+        took over (:meth:`OutputPort.take_over`)."""
+        self._outputs[port.topic] = port
+
+    def register(self, port: 'OutputPort') -> None:
+        pending = getattr(self._deferring, 'ports', None)
+        if pending is not None:
+            pending.append(port)
+            return
+        self._outputs[port.topic] = port
+        for watcher in list(self._watchers):
+            watcher(port)
+
+    def unregister(self, port: 'OutputPort') -> None:
+        if self._outputs.get(port.topic) is port:
+            del self._outputs[port.topic]
+
+    def lookup(self, topic: str) -> 'OutputPort | None':
+        return self._outputs.get(topic)
 
 
-class OutputPort:
-    """Writes samples to linked in-process inputs and, when someone else listens, to DDS."""
+class ListenedPublisher:
+    """A publisher that builds and sends a sample's message only while a DDS reader listens (a
+    publish with a reader costs a Fast DDS send in the publishing thread, a sample's message
+    its conversion); who listens is looked up every :attr:`RECHECK_PERIOD` seconds."""
 
     #: How often the number of DDS subscribers is looked up again (seconds).
     RECHECK_PERIOD = 0.2
+
+    def __init__(self, node: Node, msg_type: type, topic: str, qos) -> None:
+        self.publisher = node.create_publisher(msg_type, topic, qos)
+        self._listened = False
+        self._checked_at = 0.0
+
+    def publish(self, sample: Any) -> None:
+        now = time.monotonic()
+        if now - self._checked_at > self.RECHECK_PERIOD:
+            self._checked_at = now
+            self._listened = self.publisher.get_subscription_count() > 0
+        if self._listened:
+            self.publisher.publish(as_message(sample))
+
+
+class OutputPort:
+    """Writes samples to linked in-process inputs and taps and, when a DDS reader listens, its
+    message to DDS."""
 
     def __init__(self, node: Node, spec: PortSpec) -> None:
         self.spec = spec
         self.topic = spec.id
         self._node = node
-        self._publisher = node.create_publisher(spec.msg_type, spec.id, DATA_QOS)
+        self._dds = ListenedPublisher(node, spec.msg_type, spec.id, DATA_QOS)
         self._sinks: list[InputPort] = []
-        self._remote = False
-        self._checked_at = 0.0
+        self._taps: list[Callable[[str, Any], None]] = []
         self.last: Any = None
-        LocalBus.register(self)
+        self._bus = LocalBus.of(node.context)
+        self._bus.register(self)
 
     def link(self, sink: 'InputPort') -> None:
         if sink not in self._sinks:
@@ -127,21 +199,46 @@ class OutputPort:
         if sink in self._sinks:
             self._sinks.remove(sink)
 
-    def write(self, msg: Any) -> None:
-        self.last = msg
+    def tap(self, tap: Callable[[str, Any], None]) -> None:
+        """Hand every sample written from now on to ``tap(topic, sample)`` too (in the writing
+        thread, in the tick: a tap only keeps the sample)."""
+        self._taps.append(tap)
+
+    def untap(self, tap: Callable[[str, Any], None]) -> None:
+        if tap in self._taps:
+            self._taps.remove(tap)
+
+    def take_over(self, old: 'OutputPort') -> None:
+        """Feed the in-process inputs and taps ``old`` fed, and be the output of the topic from now
+        on (a swapped entity's port; its topic is the same)."""
+        for sink in old._sinks:
+            sink.relink(old, self)
+        self._sinks, old._sinks = old._sinks + [s for s in self._sinks if s not in old._sinks], []
+        self._taps, old._taps = old._taps + [t for t in self._taps if t not in old._taps], []
+        self.last = old.last
+        self._bus.replace(self)
+
+    @property
+    def last_message(self) -> Any:
+        """The newest sample as its ROS message (None before the first)."""
+        return None if self.last is None else as_message(self.last)
+
+    def write(self, sample: Any) -> None:
+        """Write a sample (or its ROS message, turned into the sample)."""
+        if type(sample) is self.spec.msg_type:
+            sample = as_sample(sample)
+        self.last = sample
         for sink in self._sinks:
-            sink.deliver(msg, self.topic)
-        now = time.monotonic()
-        if now - self._checked_at > self.RECHECK_PERIOD:
-            self._checked_at = now
-            self._remote = self._publisher.get_subscription_count() > 0
-        if self._remote:
-            self._publisher.publish(msg)
+            sink.deliver(sample, self.topic)
+        for tap in self._taps:
+            tap(self.topic, sample)
+        self._dds.publish(sample)
 
     def destroy(self) -> None:
-        LocalBus.unregister(self)
+        self._bus.unregister(self)
         self._sinks.clear()
-        self._node.destroy_publisher(self._publisher)
+        self._taps.clear()
+        self._node.destroy_publisher(self._dds.publisher)
 
 
 class InputPort:
@@ -170,15 +267,41 @@ class InputPort:
         if topic in self.sources:
             return
         self.sources.append(topic)
-        output = LocalBus.lookup(topic)
+        output = LocalBus.of(self._node.context).lookup(topic)
         if output is not None:
             output.link(self)
             self._links.append(output)
         else:
             self._subscriptions.append(self._node.create_subscription(
-                self.spec.msg_type, topic, lambda msg, topic=topic: self.deliver(msg, topic), DATA_QOS))
+                self.spec.msg_type, topic, functools.partial(self.deliver, topic=topic), DATA_QOS))
+
+    def relink(self, old: OutputPort, new: OutputPort) -> None:
+        """The output this input is linked to was replaced (see :meth:`OutputPort.take_over`)."""
+        self._links = [new if link is old else link for link in self._links]
+
+    def take_over(self, old: 'InputPort') -> None:
+        """Start from the samples ``old`` last received (a swapped entity computes at its first
+        tick, before any new sample came)."""
+        self.latest, self.received, self.received_at = old.latest, old.received, old.received_at
+        self.samples = dict(old.samples)
+
+    def disconnect_from(self, topic: str) -> None:
+        """Stop receiving from the output on ``topic`` (a removed entity's), and forget its sample."""
+        if topic not in self.sources:
+            return
+        self.sources.remove(topic)
+        self.samples.pop(topic, None)
+        for output in [o for o in self._links if o.topic == topic]:
+            output.unlink(self)
+            self._links.remove(output)
+        for subscription in [s for s in self._subscriptions if s.topic_name == topic]:
+            self._node.destroy_subscription(subscription)
+            self._subscriptions.remove(subscription)
 
     def deliver(self, msg: Any, topic: str) -> None:
+        """Take a sample (or its ROS message, turned into the sample) from ``topic``."""
+        if type(msg) is self.spec.msg_type:
+            msg = as_sample(msg)
         self.latest = msg
         self.received += 1
         self.received_at = time.monotonic()

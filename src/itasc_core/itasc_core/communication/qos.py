@@ -7,15 +7,36 @@ short queue: a controller wants the newest sample, a recorder wants every one it
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ['EVENT_QOS', 'DATA_QOS', 'STATE_QOS']
+__all__ = ['EVENT_DEPTH', 'EVENT_QOS', 'EVENT_LISTENER_QOS', 'DATA_QOS', 'STATE_QOS']
 
-#: KEEP_LAST with a deep queue rather than KEEP_ALL: Fast DDS bounds KEEP_ALL by its default
-#: resource limits (5000 samples per reader), beyond which same-process delivery drops samples
-#: silently; 10000 outstanding events per reader is more than a composite ever accumulates
-#: between two spins.
+#: How many events a writer keeps and a reader holds untaken: a whole storm of issue #8 (10,000
+#: events/s for 10 s). The queues are the buffer of paper §7.2: a reader whose process falls
+#: behind (a busy or starved CPU) holds the backlog instead of dropping its oldest events, and a
+#: writer still has every event a reader has not acknowledged (a datagram the kernel dropped) to
+#: send again. KEEP_LAST rather than KEEP_ALL: a full KEEP_ALL writer blocks the publishing thread
+#: (the control loop raises events too); Fast DDS allocates the queues as they fill, so memory
+#: grows with the backlog, bounded by this depth.
+EVENT_DEPTH = 100_000
+
+#: What an event writer offers. Transient local: a writer keeps its last EVENT_DEPTH events for a
+#: reader that matches it late. Discovery between processes is not synchronised with the first
+#: events: a composite process's Coordinator may raise its first events before the recorder in
+#: another process has matched its writer (seen under load: a recording without a Coordinator's
+#: first three events); the recorder asks for the history and gets them.
 EVENT_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=10000,
+    depth=EVENT_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+#: What an event listener (an entity, through its process's event hub) asks for: volatile, so that
+#: an entity acts only on the events raised after it listens (never on a writer's history, e.g. the
+#: deploy command that created it), and so that it also hears volatile writers from outside (a
+#: hand-written node, ``ros2 topic pub``), which a transient-local reader does not match.
+EVENT_LISTENER_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=EVENT_DEPTH,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )

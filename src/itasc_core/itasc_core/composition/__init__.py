@@ -1,4 +1,5 @@
-"""Composition (paper §3): the composition model, the Composer, deployment and the entity registry."""
+"""Composition (paper §3): the composition model, the Composer and its run-time re-composition,
+deployment and the entity registry."""
 
 from .composer import Composer, bring_up
 from .deployment import Runtime, make_executor

@@ -14,8 +14,10 @@ the Coordinator raises the matching event, answering with a status event:
 ``e_<c>_cleanup_computation``         destroy Functional Entities incl. child composites
                                       → ``e_<c>_computation_cleaned``
 ``e_<c>_cleanup``                     destroy the other entities → ``e_<c>_cleaned``
-``e_<c>_compose_<step>``              a composition step of the model, e.g. add a Task while the
-                                      composite runs → ``e_<c>_composed`` (detail: new children)
+``e_<c>_compose_<step>``              a composition step of the model while the composite runs:
+                                      add, remove, swap entities, between two ticks
+                                      (:mod:`.steps`) → ``e_<c>_composed`` /
+                                      ``e_<c>_compose_failed`` (detail: ``<step>: <what, why>``)
 ``e_<c>_check_faults``                before a recovery from Safety: are the causes still there?
                                       Asks each entity named in the detail ``fault_persists()``,
                                       and counts a dead child process as one
@@ -29,8 +31,13 @@ from __future__ import annotations
 
 import threading
 import traceback
+from typing import Callable
 
 from ..communication.event_hub import EventHub
+from ..communication.event_names import (BIND, CHECK_FAULTS, CLEANED, CLEANUP, CLEANUP_COMPUTATION,
+                                          COMPUTATION_CLEANED, CONFIGURED, CONNECT, CONNECT_FAILED,
+                                          CONNECTED, CONNECTION_REFUSED, DEPLOY, DEPLOY_FAILED, DEPLOYED,
+                                          FAULTS_CHECKED, SAFETY_EVENT, STOP, STOPPED, event, owner_of)
 from ..communication.events import EventRaiser, events_topic
 from ..communication.ports import SemanticMismatch, check_connection
 from ..computation.functional_entity import FunctionalEntity
@@ -47,8 +54,9 @@ from .deployment import Runtime, exit_reason
 from .model import CompositeModel, ConnectionModel, EntityModel, MonitorModel
 from .registry import resolve_kind
 from .resolve import PortNotFound, port_of
+from .steps import CompositionSteps
 
-__all__ = ['Composer', 'bring_up', 'running_spec']
+__all__ = ['Composer', 'assemble', 'bring_up', 'running_spec']
 
 
 def running_spec(model: CompositeModel) -> RunningFsmSpec | None:
@@ -66,12 +74,21 @@ def bring_up(*, model: CompositeModel, context: CompositeContext, runtime: Runti
              remote_trigger: bool = False) -> 'Composer':
     """Create a composite's Coordinator, Composer and Configurator (paper §6.1: what a bootstrap
     does for the root and a parent's Composer does for a child)."""
+    composer = assemble(model=model, context=context, runtime=runtime, remote_trigger=remote_trigger)
+    runtime.add(composer, composer.coordinator, composer.configurator)
+    return composer
+
+
+def assemble(*, model: CompositeModel, context: CompositeContext, runtime: Runtime,
+             remote_trigger: bool = False) -> 'Composer':
+    """:func:`bring_up` without handing the nodes to the executor (built off the tick path)."""
     composer = Composer(model=model, context=context, runtime=runtime, remote_trigger=remote_trigger)
     coordinator = Coordinator(
         composite=context,
         children=[child.name for child in model.children],
         running=running_spec(model),
         safety_to_parent=model.safety.raise_to_parent,
+        steps=list(model.composition_steps),
     )
     configurator = Configurator(
         composite=context,
@@ -80,7 +97,6 @@ def bring_up(*, model: CompositeModel, context: CompositeContext, runtime: Runti
         entities=composer.entity,
     )
     composer.coordinator, composer.configurator = coordinator, configurator
-    runtime.add(composer, coordinator, configurator)
     return composer
 
 
@@ -103,51 +119,59 @@ class Composer(Entity):
         self.children: dict[str, Composer | None] = {}  # None: hosted in another process
         self._pending: list[ConnectionModel] = []
         self._child_raisers: dict[str, EventRaiser] = {}
+        #: Exported inputs the parent bound: port -> the topic that feeds it.
+        self._bound: dict[str, str] = {}
         self._dead: set[str] = set()
-        self._child_stopped = {f'e_{child.name}_stopped': child.name for child in model.children}
-        self._child_stop = {f'e_{child.name}_stop': child.name for child in model.children}
         self._stopped: set[str] = set()  # children that reported stopped: their processes end by themselves
         self._stop_commanded: set[str] = set()
         self._ending: set[str] = set()  # children whose processes this Composer ends itself
         self._lock = threading.Lock()  # the process watchers run in threads of their own
+        #: The composite's Functional Entities were cleaned up (it stopped): nothing more to compose.
+        self.cleaned = False
         c = context.name
         self._steps = {
-            f'e_{c}_deploy': self.deploy,
-            f'e_{c}_connect': self.connect,
-            f'e_{c}_cleanup_computation': self.cleanup_computation,
-            f'e_{c}_cleanup': self.cleanup,
+            event(c, DEPLOY): self.deploy,
+            event(c, CONNECT): self.connect,
+            event(c, CLEANUP_COMPUTATION): self.cleanup_computation,
+            event(c, CLEANUP): self.cleanup,
         }
-        for step in model.composition_steps:
-            self._steps[f'e_{c}_compose_{step}'] = lambda step=step: self.compose(step)
+        self.composition = CompositionSteps(self)
         self._events = self.listen(topics=[context.events_topic], on_priority=self._on_event,
                                      accept=self._accepts, immediate=True)
 
     # -- events -------------------------------------------------------------------------------------
 
+    def _child_event(self, name: str, what: str) -> str | None:
+        """The child composite ``name`` = ``e_<child>_<what>`` is about, if it is one."""
+        child = owner_of(name, what)
+        return child if child in self.children else None
+
     def _accepts(self, name: str) -> bool:
-        return name in self._steps or (bool(self._pending) and name.endswith('_configured')) \
-            or name.startswith(f'e_{self.composite.name}_bind') \
-            or name in self._child_stopped or name in self._child_stop \
-            or name == f'e_{self.composite.name}_check_faults'
+        c = self.composite.name
+        return name in self._steps or (bool(self._pending) and name.endswith(f'_{CONFIGURED}')) \
+            or name == event(c, BIND) or name.endswith((f'_{STOPPED}', f'_{STOP}')) \
+            or name == event(c, CHECK_FAULTS) or self.composition.accepts(name)
 
     def _on_event(self, msg) -> None:
-        if msg.name in self._child_stopped:
-            self._stopped.add(self._child_stopped[msg.name])
+        if self.composition.handle(msg):
             return
-        if msg.name in self._child_stop:
-            child = self._child_stop[msg.name]
+        if (child := self._child_event(msg.name, STOPPED)) is not None:
+            self._stopped.add(child)
+            self.composition.child_stopped(child)
+            return
+        if (child := self._child_event(msg.name, STOP)) is not None:
             with self._lock:
                 self._stop_commanded.add(child)
                 dead = child in self._dead
             if dead:
-                self.raise_event(f'e_{child}_stopped', detail='its process had died')
+                self.raise_event(event(child, STOPPED), detail='its process had died')
             return
-        if msg.name == f'e_{self.composite.name}_check_faults':
+        if msg.name == event(self.composite.name, CHECK_FAULTS):
             number, sources = parse_request(msg.detail)
-            self.raise_event(f'e_{self.composite.name}_faults_checked',
+            self.raise_event(event(self.composite.name, FAULTS_CHECKED),
                              detail=check_answer(number, '; '.join(self.faults_still_there(sources))))
             return
-        if msg.name == f'e_{self.composite.name}_bind':
+        if msg.name == event(self.composite.name, BIND):
             port, _, topic = msg.detail.partition('|')
             self.bind_export(port, topic)
             return
@@ -155,7 +179,7 @@ class Composer(Entity):
         if step is not None:
             step()
         elif self._pending:
-            self._connect_pending(msg.name)
+            self.connect_pending(msg.name)
 
     def entity(self, name: str):
         """A deployed entity of this composite by name (for the Configurator)."""
@@ -188,32 +212,49 @@ class Composer(Entity):
         c = self.composite.name
         try:
             if self.scheduler is None:  # deploying again after Safety keeps what exists
-                self.scheduler = Scheduler(composite=self.composite, remote_trigger=self._remote_trigger)
-                self.runtime.add(self.scheduler)
-                for entity in self.model.entities:
-                    self._deploy_entity(entity)
-                for monitor in self.model.monitors:
-                    self._deploy_monitor(monitor)
-                if self.model.events:
-                    self.outside_events = OutsideEvents(composite=self.composite, events=self.model.events)
-                    self.runtime.add(self.outside_events)
-                if self.composite.parent_namespace is None and self.model.rate:
-                    self.timer = Timer(composite=self.composite, scheduler=self.scheduler, rate=self.model.rate)
-                    self.runtime.add(self.timer)
+                self.runtime.add(*self.build())
         except Exception as err:  # noqa: BLE001 - reported to the Coordinator, which goes to Safety
             self.get_logger().error(traceback.format_exc())
-            self.raise_event(f'e_{c}_deploy_failed', detail=f'{type(err).__name__}: {err}')
+            self.raise_event(event(c, DEPLOY_FAILED), detail=f'{type(err).__name__}: {err}')
             return
         self._await_remote_children()
 
-    def _await_remote_children(self, *, timeout: float = 30.0) -> None:
-        """Report deployed once every child process listens to our event topic (its event hub, on
-        behalf of the child's Coordinator) and its Coordinator talks on it, so that no command to
-        it can be lost to DDS discovery."""
-        remote = [self.composite.child(name).namespace for name, c in self.children.items() if c is None]
+    def build(self) -> list:
+        """Create the Scheduler, Functional Entities, Monitors, the entity of the outside events,
+        (root) Timer and the child composites' Coordinators, Configurators and Composers; the nodes
+        to hand to the executor (for a child composite added at run time: built off the tick path,
+        :mod:`.steps`)."""
+        nodes: list = []
+        self.scheduler = Scheduler(composite=self.composite, remote_trigger=self._remote_trigger)
+        nodes.append(self.scheduler)
+        for entity in self.model.entities:
+            nodes += self._deploy_entity(entity)
+        for monitor in self.model.monitors:
+            nodes.append(self._deploy_monitor(monitor))
+        if self.model.events:
+            self.outside_events = OutsideEvents(composite=self.composite, events=self.model.events)
+            nodes.append(self.outside_events)
+        if self.composite.parent_namespace is None and self.model.rate:
+            self.timer = Timer(composite=self.composite, scheduler=self.scheduler, rate=self.model.rate)
+            nodes.append(self.timer)
+        return nodes
+
+    def _await_remote_children(self) -> None:
+        """Report deployed once every child process listens (see :meth:`when_children_listen`)."""
         c = self.composite.name
+        self.when_children_listen(list(self.children), then=lambda: self.raise_event(event(c, DEPLOYED)),
+                                  otherwise=lambda late: self.raise_event(
+                                      event(c, DEPLOY_FAILED), detail=f'composite processes did not come up: {late}'))
+
+    def when_children_listen(self, names: list[str], *, then: Callable[[], None],
+                             otherwise: Callable[[list[str]], None], timeout: float = 30.0) -> None:
+        """Call ``then`` once the process of every child of ``names`` that has one listens to our
+        event topic (its event hub, on behalf of the child's Coordinator) and its Coordinator talks
+        on it, so that no command to it can be lost to DDS discovery; ``otherwise(late)`` after
+        ``timeout`` s."""
+        remote = [self.composite.child(name).namespace for name in names if self.children.get(name, 0) is None]
         if not remote:
-            self.raise_event(f'e_{c}_deployed')
+            then()
             return
         deadline = self.get_clock().now().nanoseconds + int(timeout * 1e9)
         topic = self.composite.events_topic
@@ -227,67 +268,73 @@ class Composer(Entity):
             if all(ready(subscribers, EventHub.NODE_NAME, ns) and ready(publishers, 'coordinator', ns)
                    for ns in remote):
                 self.destroy_timer(timer)
-                self.raise_event(f'e_{c}_deployed')
+                then()
             elif self.get_clock().now().nanoseconds > deadline:
                 self.destroy_timer(timer)
-                self.raise_event(f'e_{c}_deploy_failed', detail=f'composite processes did not come up: {remote}')
+                otherwise(remote)
         timer = self.create_timer(0.02, poll)
 
-    def _deploy_entity(self, entity: EntityModel | CompositeModel, *, index: int | None = None) -> None:
+    def _deploy_entity(self, entity: EntityModel | CompositeModel) -> list:
+        """Create one entity (a child composite: its Coordinator, Configurator and Composer, or its
+        process) and schedule it; the nodes created."""
         scheduled = entity.name in self.model.schedule_order()
         enabled = entity.name not in self.model.inactive
         if isinstance(entity, CompositeModel):
             context = self.composite.child(entity.name)
             if self.runtime.separate(entity):  # per-composite, or on another host
-                self.runtime.spawn(model=entity, namespace=context.namespace,
-                                   parent_namespace=self.composite.namespace)
-                self.children[entity.name] = None
-                process = self.runtime.process(context.namespace)
-                threading.Thread(target=self._watch, args=(entity.name, process), daemon=True,
-                                 name=f'watch {entity.name}').start()
+                self.spawn_child(entity)
                 if scheduled:
                     self.scheduler.add_remote_child(entity.name, context.namespace, enabled=enabled)
-            else:
-                child = bring_up(model=entity, context=context, runtime=self.runtime)
-                self.children[entity.name] = child
-                if scheduled:
-                    self.scheduler.add_child(entity.name, child, enabled=enabled)
-            return
-        cls = resolve_kind(entity.kind)
-        node = cls(entity.name, composite=self.composite, parameters=entity.parameters)
+                return []
+            child = assemble(model=entity, context=context, runtime=self.runtime)
+            self.children[entity.name] = child
+            if scheduled:
+                self.scheduler.add_child(entity.name, child, enabled=enabled)
+            return [child, child.coordinator, child.configurator]
+        node = self.create_entity(entity)
         self.entities[entity.name] = node
-        self.runtime.add(node)
         if scheduled:
-            self.scheduler.add_entity(node, index=index, enabled=enabled)
+            self.scheduler.add_entity(node, enabled=enabled)
+        return [node]
 
-    def _deploy_monitor(self, monitor: MonitorModel) -> None:
+    def create_entity(self, entity: EntityModel):
+        """A leaf Functional Entity of this composite, not yet given to the executor."""
+        return resolve_kind(entity.kind)(entity.name, composite=self.composite, parameters=entity.parameters)
+
+    def spawn_child(self, entity: CompositeModel) -> None:
+        """Start the process of child composite ``entity`` and watch it."""
+        context = self.composite.child(entity.name)
+        self.runtime.spawn(model=entity, namespace=context.namespace, parent_namespace=self.composite.namespace)
+        self.children[entity.name] = None
+        process = self.runtime.process(context.namespace)
+        threading.Thread(target=self._watch, args=(entity.name, process), daemon=True,
+                         name=f'watch {entity.name}').start()
+
+    def _deploy_monitor(self, monitor: MonitorModel):
         watched, _ = port_of(self.model, self.composite.namespace, monitor.watch)
-        low, high = monitor.band or (float('-inf'), float('inf'))
         parameters = {
-            'field': monitor.field, 'condition': monitor.condition, 'threshold': monitor.threshold,
-            'low': low, 'high': high, 'timeout': monitor.timeout, 'grace': monitor.grace, 'event': monitor.event,
-            'enabled': monitor.enabled, 'enable_on': monitor.enable_on or [''],
-            'disable_on': monitor.disable_on or [''],
+            'field': monitor.field, 'condition': monitor.condition, 'event': monitor.event, 'enabled': monitor.enabled,
+            'enable_on': monitor.enable_on, 'disable_on': monitor.disable_on, **monitor.condition_parameters,
         }
         node = Monitor(monitor.name, composite=self.composite, parameters=parameters, watch=watched)
         self.monitors[monitor.name] = node
-        self.runtime.add(node)
         self.scheduler.add_monitor(node)
+        return node
 
     # -- ConnectEntities ----------------------------------------------------------------------------------
 
     def connect(self) -> None:
         c = self.composite.name
-        refused = [problem for problem in map(self._connect_one, self.model.connections) if problem]
+        refused = [problem for problem in map(self.connect_one, self.model.connections) if problem]
         for monitor in self.model.monitors:
             source, _ = port_of(self.model, self.composite.namespace, monitor.watch)
             self.monitors[monitor.name].watch.connect(source.id)
         if refused:
-            self.raise_event(f'e_{c}_connect_failed', detail='; '.join(refused))
+            self.raise_event(event(c, CONNECT_FAILED), detail='; '.join(refused))
         else:
-            self.raise_event(f'e_{c}_connected')
+            self.raise_event(event(c, CONNECTED))
 
-    def _connect_one(self, connection: ConnectionModel) -> str | None:
+    def connect_one(self, connection: ConnectionModel) -> str | None:
         """Connect one data flow; return why it was refused, or None."""
         ns = self.composite.namespace
         try:
@@ -296,7 +343,7 @@ class Composer(Entity):
             check_connection(source, target, source_name=source_name, target_name=target_name)
         except (SemanticMismatch, PortNotFound) as err:
             self.get_logger().error(str(err))
-            self.raise_event(f'e_{self.composite.name}_connection_refused', detail=str(err))
+            self.raise_event(event(self.composite.name, CONNECTION_REFUSED), detail=str(err))
             return str(err)
         entity_name, _, port = connection.target.partition('.')
         if entity_name in self.entities:
@@ -304,6 +351,10 @@ class Composer(Entity):
         else:
             self._bind_child(entity_name, port, source.id)
         return None
+
+    def source_topic(self, ref: str, *, model: CompositeModel | None = None) -> str:
+        """The topic of output ``ref`` (``entity.port``) of this composite (as ``model`` has it)."""
+        return port_of(model or self.model, self.composite.namespace, ref)[0].id
 
     def _bind_child(self, child: str, port: str, topic: str) -> None:
         """Feed a port a child composite exports (the child's Composer connects its inside)."""
@@ -316,10 +367,11 @@ class Composer(Entity):
             raiser = self._child_raisers.get(namespace)
             if raiser is None:
                 raiser = self._child_raisers[namespace] = EventRaiser(self, topic=events_topic(namespace))
-            raiser.raise_event(f'e_{child}_bind', detail=f'{port}|{topic}')
+            raiser.raise_event(event(child, BIND), detail=f'{port}|{topic}')
 
     def bind_export(self, port: str, topic: str) -> None:
         """Connect the inside of exported input ``port`` to ``topic``."""
+        self._bound[port] = topic
         inner = self.model.exports[port]
         entity_name, _, inner_port = inner.partition('.')
         if entity_name in self.entities:
@@ -327,44 +379,41 @@ class Composer(Entity):
         else:
             self._bind_child(entity_name, inner_port, topic)
 
-    # -- run-time re-composition ------------------------------------------------------------------------
+    # -- run-time re-composition (:mod:`.steps`) ------------------------------------------------------
 
-    def compose(self, step: str) -> None:
-        """Execute composition step ``step``: add entities and child composites to the running
-        composite; their connections are made once each new child reports configured."""
-        spec = self.model.composition_steps[step]
-        added = [e for e in spec.add if e.name not in self.entities and e.name not in self.children]
-        self.model = self.model.model_copy(update={
-            'entities': [*self.model.entities, *added],
-            'connections': [*self.model.connections, *spec.connections],
-        })
-        try:
-            for entity in added:
-                self._deploy_entity(entity)
-        except Exception as err:  # noqa: BLE001
-            self.raise_event(f'e_{self.composite.name}_compose_failed', detail=f'{type(err).__name__}: {err}')
+    def bound_inputs(self, entity: str) -> dict[str, str]:
+        """Inputs of leaf ``entity`` fed through exports the parent bound: port -> topic."""
+        return {inner.partition('.')[2]: self._bound[port] for port, inner in self.model.exports.items()
+                if port in self._bound and inner.partition('.')[0] == entity}
+
+    def retire_child(self, name: str) -> None:
+        """A removed child composite stopped: its Coordinator, Configurator and Composer go (its
+        process, if it has one, ends by itself)."""
+        child = self.children.pop(name, None)
+        namespace = self.composite.child(name).namespace
+        raiser = self._child_raisers.pop(namespace, None)
+        if raiser is not None:
+            raiser.destroy()
+        if child is not None:
+            self.runtime.retire([child.coordinator, child.configurator, child])
             return
-        new_children = [e.name for e in added if isinstance(e, CompositeModel)]
-        leaves = {e.name for e in added if isinstance(e, EntityModel)}
-        for connection in spec.connections:
-            ends = {connection.source.split('.')[0], connection.target.split('.')[0]}
-            if ends & set(new_children):
-                self._pending.append(connection)
-            else:
-                self._connect_one(connection)
-        for name in leaves:
-            self.entities[name].start()
-        self.raise_event(f'e_{self.composite.name}_composed', detail=','.join(new_children))
+        with self._lock:
+            self._ending.add(name)
+        threading.Thread(target=self.runtime.join, args=(namespace,), daemon=True, name=f'join {name}').start()
 
-    def _connect_pending(self, event: str) -> None:
-        ready = {child for child in self.children if event == f'e_{child}_configured'}
+    def connect_once_configured(self, connection: ConnectionModel) -> None:
+        """Connect once the child composite at one of its ends reports configured (it was added)."""
+        self._pending.append(connection)
+
+    def connect_pending(self, name: str) -> None:
+        ready = {child for child in self.children if name == event(child, CONFIGURED)}
         if not ready:
             return
         remaining = []
         for connection in self._pending:
             ends = {connection.source.split('.')[0], connection.target.split('.')[0]}
             if ends & ready:
-                self._connect_one(connection)
+                self.connect_one(connection)
             else:
                 remaining.append(connection)
         self._pending = remaining
@@ -382,15 +431,16 @@ class Composer(Entity):
             self._dead.add(name)
             stop_commanded = name in self._stop_commanded
         detail = f'process of composite {name} {exit_reason(process)}'
-        self.raise_event('e_emergency', priority=True, detail=detail)
+        self.raise_event(SAFETY_EVENT, priority=True, detail=detail)
         if stop_commanded:  # it died stopping: it will never answer
-            self.raise_event(f'e_{name}_stopped', detail='its process had died')
+            self.raise_event(event(name, STOPPED), detail='its process had died')
         self.get_logger().error(detail)
 
     # -- Stopped ----------------------------------------------------------------------------------------
 
     def cleanup_computation(self) -> None:
         """Destroy the Functional Entities, child composites included (CleanupComputation)."""
+        self.cleaned = True
         retired: list = list(self.entities.values())
         with self._lock:
             self._ending |= set(self.children)
@@ -402,7 +452,7 @@ class Composer(Entity):
         self.entities.clear()
         self.children.clear()
         self.runtime.retire(retired)
-        self.raise_event(f'e_{self.composite.name}_computation_cleaned')
+        self.raise_event(event(self.composite.name, COMPUTATION_CLEANED))
 
     def cleanup(self) -> None:
         """Destroy the other entities of the composite (Cleanup)."""
@@ -410,4 +460,4 @@ class Composer(Entity):
         self.monitors.clear()
         self.scheduler = self.timer = self.outside_events = None
         self.runtime.retire(node for node in retired if node is not None)
-        self.raise_event(f'e_{self.composite.name}_cleaned')
+        self.raise_event(event(self.composite.name, CLEANED))

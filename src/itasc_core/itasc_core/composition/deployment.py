@@ -7,8 +7,14 @@ parent's Composer (:mod:`.host`), and everything it exchanges with its parent tr
 A composite placed on another host (``host:`` in the model) gets a process of its own there,
 whatever the mode: the host agent of that name starts it (:mod:`.host_agent`, :mod:`.remote`).
 This process's host is ``host`` (default ``$ITASC_HOST``; unset: composites placed on any host run
-elsewhere). Nodes are destroyed between executor spins, never from inside a callback. The
-process's entities share one reader per event topic (:class:`~..communication.event_hub.EventHub`).
+elsewhere). Nodes are destroyed between executor spins, never from inside a callback; a process
+that runs an application destroys them off the tick path (``background``: a node takes some
+milliseconds to destroy, a Task composite removed at run time a dozen of them), once they are out
+of the executor and no longer listen to events. Nodes built for a run-time re-composition are
+built off the tick path too (:meth:`Runtime.off_tick`), and the result handed back to the
+executor's thread (:meth:`Runtime.post`). The process's entities share one reader per event topic
+(:class:`~..communication.event_hub.EventHub`) and hand data to each other's ports in-process
+(:class:`~..communication.ports.LocalBus`).
 """
 
 from __future__ import annotations
@@ -19,11 +25,14 @@ import os
 import subprocess
 import sys
 import tempfile
-from typing import Iterable, Literal
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, Iterable, Literal
 
 from rclpy.node import Node
 
 from ..communication.event_hub import EventHub
+from ..communication.ports import LocalBus
 from .model import CompositeModel
 from .remote import HostClient, RemoteProcess
 
@@ -67,17 +76,24 @@ class Runtime:
     """The executor of this process, the nodes on it and the composite processes it started."""
 
     def __init__(self, *, executor, mode: DeployMode = 'single', host: str | None = None,
-                 namespace: str = '/') -> None:
+                 namespace: str = '/', background: bool = False) -> None:
         self.executor = executor
         self.mode: DeployMode = mode
         self.host = host or os.environ.get('ITASC_HOST') or None
         self._retired: list[Node] = []
+        #: Work off the tick path: building nodes for a re-composition, destroying retired ones.
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='itasc-runtime')
+        self._background = background
+        self._doomed: list[Node] = []  # out of the executor, to be destroyed off the tick path
+        self._doomed_lock = threading.Lock()
         self._processes: dict[str, subprocess.Popen | RemoteProcess] = {}
         self._spec_files: list[str] = []
         self._hosts: HostClient | None = None
         #: the process's one reader per event topic, shared by every entity created from now on;
         #: ``namespace``: that of the composite this process was started for
         self.events = EventHub.install(executor, namespace=namespace)
+        #: the outputs of this process's entities, by topic (in-process data flow)
+        self.bus = LocalBus.of(executor.context)
 
     def add(self, *nodes: Node) -> None:
         for node in nodes:
@@ -87,13 +103,49 @@ class Runtime:
         """Destroy ``nodes`` after the current callback (see :meth:`reap`)."""
         self._retired.extend(nodes)
 
-    def reap(self) -> int:
-        """Destroy retired nodes; call between spins. Returns how many were destroyed."""
+    def reap(self, *, wait: bool = False) -> int:
+        """Destroy retired nodes; call between spins. Returns how many were retired. They leave the
+        executor and stop listening to events at once; they are destroyed once the executor has let
+        go of them (a node destroyed earlier may still have a timer fire, and its
+        ``~/get_type_description`` service stays in the graph): at the next spin, in the
+        ``background`` off the tick path; with ``wait``, at once (the process ends)."""
         nodes, self._retired = self._retired, []
         for node in nodes:
             self.executor.remove_node(node)
-            node.destroy_node()
+            detach = getattr(node, 'detach', None)
+            if detach is not None:
+                detach()
+        with self._doomed_lock:
+            self._doomed += nodes
+        if wait:
+            self._destroy_now()
+        elif nodes:  # after the executor processed the removal (its queue is in order)
+            self.post(self._destroy_doomed)
         return len(nodes)
+
+    def _destroy_doomed(self) -> None:
+        if not self._background:
+            self._destroy_now()
+            return
+        try:
+            self.off_tick(self._destroy_now)
+        except RuntimeError:  # the worker is shut down: the process ends
+            self._destroy_now()
+
+    def _destroy_now(self) -> None:
+        with self._doomed_lock:
+            nodes, self._doomed = self._doomed, []
+        for node in nodes:
+            node.destroy_node()
+
+    def off_tick(self, work: Callable[[], object]):
+        """Run ``work`` in this process's worker thread; a future of its result."""
+        return self._worker.submit(work)
+
+    def post(self, callback: Callable[[], object]) -> None:
+        """Run ``callback`` in the executor's thread, between two callbacks (callable from any
+        thread)."""
+        self.executor.create_task(callback)
 
     def elsewhere(self, model: CompositeModel) -> bool:
         """Whether child composite ``model`` is placed on another host than this process's."""
@@ -109,7 +161,7 @@ class Runtime:
             if self._hosts is None:
                 self._hosts = HostClient(context=self.executor.context)
             self._processes[namespace] = self._hosts.start(
-                host=model.host, spec=model.model_dump(by_alias=True, exclude_defaults=True),
+                host=model.host or '', spec=model.model_dump(by_alias=True, exclude_defaults=True),
                 namespace=namespace, parent_namespace=parent_namespace)
             return
         fd, path = tempfile.mkstemp(prefix=f'itasc_{model.name}_', suffix='.json')
@@ -145,6 +197,8 @@ class Runtime:
         stopped in order any more (this process ends on a signal, or its parent is gone)."""
         for namespace in list(self._processes):
             self.join(namespace, timeout=5.0, orderly=orderly)
+        self._worker.shutdown(wait=True)
+        self._destroy_now()
         if self._hosts is not None:
             self._hosts.close()
             self._hosts = None

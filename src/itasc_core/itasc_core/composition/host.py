@@ -13,6 +13,7 @@ take part in. Its parent ends it with SIGKILL when it cannot stop in order.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import json
 import os
 import signal
@@ -43,11 +44,12 @@ def main(argv: list[str] | None = None) -> int:
     context = CompositeContext(name=model.name, namespace=args.namespace, parent_namespace=args.parent_namespace)
 
     configure_dds()
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # `kill -USR1 <pid>`: where is it stuck?
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, signal.SIG_IGN)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
-    runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace)
+    runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace, background=True)
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     stopped_at = None
     try:
@@ -64,6 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         runtime.shutdown(orderly=stopped_at is not None)
         end_process_within()
+        runtime.reap(wait=True)
         for node in (composer.coordinator, composer.configurator, composer):
             executor.remove_node(node)
             node.destroy_node()

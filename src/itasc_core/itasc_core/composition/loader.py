@@ -153,7 +153,8 @@ def _scan(text: str, path: Path, *, budget: int) -> None:
             events += 1
             if events > 2 * budget:  # a value is one event (a scalar) or two (a collection), keys one
                 loc = tuple(frame[0] for frame in stack[1:]) + ((stack[-1][2],) if stack else ())
-                raise ModelError(str(path), format_loc(tuple(p for p in loc if p is not None)), f'the model has more than {MAX_VALUES} values '
+                raise ModelError(str(path), format_loc(tuple(p for p in loc if p is not None)),
+                                 f'the model has more than {MAX_VALUES} values '
                                  f'(line {event.start_mark.line + 1}): not a model')
             if isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 stack.pop()
@@ -166,8 +167,8 @@ def _scan(text: str, path: Path, *, budget: int) -> None:
             if top is not None and top[1] is not None and top[2] is None:  # a mapping's key
                 key = _key(loader, event)
                 if key is not None and key in top[1] and key[1] != '<<':
-                    loc = [frame[0] for frame in stack[1:]] + [key[1]]
-                    raise ModelError(str(path), format_loc(tuple(loc)),
+                    where = [frame[0] for frame in stack[1:]] + [key[1]]
+                    raise ModelError(str(path), format_loc(tuple(where)),
                                      f"key '{key[1]}' given twice in one mapping (line {top[1][key] + 1} and "
                                      f'line {event.start_mark.line + 1}): which one is meant?')
                 if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
@@ -264,14 +265,22 @@ def validate(model: type[M], data: Any, sources: dict[Loc, Path], *, at: Loc = (
 
 def _first_error(err: ValidationError, sources: dict[Loc, Path], at: Loc) -> ModelError:
     detail = err.errors()[0]
-    loc = at + tuple(p for p in detail['loc'] if p not in ('entity', 'composite'))  # union tags
-    path, inner = source_of(loc, sources)
+    # union tags: a composition entity's, a kind's (``condition=above``)
+    loc = at + tuple(p for p in detail['loc']
+                     if p not in ('entity', 'composite') and not (isinstance(p, str) and '=' in p))
     message = detail['msg'].removeprefix('Value error, ')
+    if detail['type'] == 'unknown_kind':  # a kind field (``type``, ``condition``) naming no registered kind
+        ctx = detail['ctx']
+        loc += (ctx['field'],)
+        got = detail['input'].get(ctx['field']) if isinstance(detail['input'], dict) else None
+        message = 'required field is missing' if got is None else \
+            f"unknown {ctx['what']} {got!r}; known: {ctx['known']}"
+    path, inner = source_of(loc, sources)
     if detail['type'] == 'missing':
         message = 'required field is missing'
     elif detail['type'] == 'extra_forbidden':
         message = 'unknown field (not part of the model)'
-    elif 'input' in detail and detail['type'] not in ('value_error', 'assertion_error'):
+    elif 'input' in detail and detail['type'] not in ('value_error', 'assertion_error', 'unknown_kind'):
         got = repr(detail['input'])
         message = f"{message} (got {got if len(got) <= 80 else got[:77] + '...'})"
     return ModelError(str(path), format_loc(inner), message)

@@ -13,9 +13,14 @@ nodes that raise its events (outside events), and the host it runs on (§4.4).
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
+
+from ..computation.conditions import CONDITIONS
+from ..computation.parameters import problems
+from ..kinds import UnknownKind
 
 __all__ = [
     'EntityModel',
@@ -36,7 +41,7 @@ _NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra='forbid', frozen=True)
+    model_config = ConfigDict(extra='forbid', frozen=True, use_attribute_docstrings=True)
 
 
 class EntityModel(_Strict):
@@ -55,37 +60,51 @@ class ConnectionModel(_Strict):
 
 
 class MonitorModel(_Strict):
-    """A Monitor (paper §4.1): a condition over a data-flow port that raises a named event."""
+    """A Monitor (paper §4.1): a condition over a data-flow port that raises a named event. The
+    condition is a registered kind (:mod:`..computation.conditions`); its parameters (``threshold``,
+    ``band``, ``timeout``, ...) are further fields, checked by the kind's model."""
+
+    model_config = ConfigDict(extra='allow', frozen=True)
 
     name: str = Field(pattern=_NAME)
     watch: str = Field(pattern=r'^[A-Za-z][A-Za-z0-9_]*\.[A-Za-z][A-Za-z0-9_]*$')
     field: str = ''
-    condition: Literal['above', 'below', 'outside', 'stale', 'nonfinite']
-    threshold: float = 0.0
-    band: tuple[float, float] | None = None
-    timeout: float = Field(default=0.5, gt=0)
-    #: ``stale``: how long the first sample may take after the Monitor is switched on.
-    grace: float = Field(default=0.0, ge=0)
+    condition: str = Field(min_length=1)
     event: str = Field(pattern=r'^e_[A-Za-z0-9_]+$')
     enabled: bool = True
     enable_on: list[str] = Field(default_factory=list)
     disable_on: list[str] = Field(default_factory=list)
 
     @model_validator(mode='after')
-    def _band_given(self) -> 'MonitorModel':
-        if self.condition == 'outside' and self.band is None:
-            raise ValueError("condition 'outside' needs band: [low, high]")
+    def _condition(self) -> 'MonitorModel':
+        try:
+            CONDITIONS[self.condition].Parameters.model_validate(self.model_extra or {})
+        except (ValidationError, UnknownKind) as err:
+            raise ValueError(f"condition '{self.condition}': {problems(err)}") from None
         return self
+
+    @property
+    def condition_parameters(self) -> dict[str, Any]:
+        """The parameters of its condition."""
+        return dict(self.model_extra or {})
 
 
 class RunningStateModel(_Strict):
+    """A state of a Running sub-FSM and the events it raises on entry."""
+
     raise_: list[str] = Field(default_factory=list, alias='raise')
+    """Events raised on entry."""
 
 
 class RunningTransitionModel(_Strict):
+    """A transition of a Running sub-FSM."""
+
     source: str = Field(alias='from')
+    """The state it leaves."""
     target: str = Field(alias='to')
+    """The state it enters."""
     when: list[str] = Field(min_length=1)
+    """The events that trigger it (any of them)."""
 
     @field_validator('when', mode='before')
     @classmethod
@@ -147,7 +166,7 @@ class OutsideEventModel(_Strict):
         return self
 
     @property
-    def kind(self) -> str:
+    def kind(self) -> Literal['msg', 'srv']:
         """``msg`` for a topic, ``srv`` for a service."""
         return 'msg' if self.topic is not None else 'srv'
 
@@ -159,10 +178,37 @@ class SafetyModel(_Strict):
 
 
 class CompositionStepModel(_Strict):
-    """A composition step of the Composer with an ID (Coordinator–Composer pattern, §3.1)."""
+    """A composition step of the Composer with an ID (Coordinator–Composer pattern, §3.1): a
+    change of the composite's structure while it runs (:mod:`.recompose`). Whether its ports agree
+    depends on the structure when it runs (an earlier step may have changed it): the Composer checks
+    then, and refuses a step that does not fit with ``e_<c>_compose_failed``."""
 
-    add: list['EntityOrComposite'] = Field(default_factory=list)
-    connections: list[ConnectionModel] = Field(default_factory=list)
+    add: list['EntityOrComposite'] = Field(default_factory=list, description=(
+        'Entities and child composites to add.'))
+    remove: list[str] = Field(default_factory=list, description=(
+        'Entities and child composites to remove, with their connections.'))
+    swap: list[EntityModel] = Field(default_factory=list, description=(
+        'Entities that replace the entity of their name (a controller, a setpoint generator, the '
+        'solver): the new one must have the ports the connections of the old one use, with the same '
+        'metadata.'))
+    connections: list[ConnectionModel] = Field(default_factory=list, description=(
+        'Connections to make (between the entities of the composite after the step).'))
+    children: dict[str, str] = Field(default_factory=dict, description=(
+        'Steps of child composites that belong to this step: child name -> its step.'))
+
+    @model_validator(mode='after')
+    def _disjoint(self) -> 'CompositionStepModel':
+        added, swapped = [e.name for e in self.add], [e.name for e in self.swap]
+        for a, b, what in ((added, self.remove, 'added and removed'), (swapped, self.remove, 'swapped and removed'),
+                           (added, swapped, 'added and swapped')):
+            both = sorted(set(a) & set(b))
+            if both:
+                raise ValueError(f'{both} both {what} in one step')
+        for names, what in ((added, 'added'), (self.remove, 'removed'), (swapped, 'swapped')):
+            twice = sorted({n for n in names if names.count(n) > 1})
+            if twice:
+                raise ValueError(f'{twice} {what} twice')
+        return self
 
 
 class CompositeModel(_Strict):
@@ -215,6 +261,14 @@ class CompositeModel(_Strict):
             if config not in self.configurations:
                 raise ValueError(f"configure names unknown configuration '{config}'; "
                                  f'known: {sorted(self.configurations)}')
+        children = {c.name: c for c in self.children}
+        for name, step in self.composition_steps.items():
+            if not re.match(_NAME, name) or name == 'failed':  # e_<c>_compose_failed is the answer
+                raise ValueError(f"composition step names must match {_NAME} and not be 'failed': {name!r}")
+            for child, child_step in step.children.items():
+                if child in children and child_step not in children[child].composition_steps:
+                    raise ValueError(f"composition step '{name}': child '{child}' has no step '{child_step}'; "
+                                     f'its steps: {sorted(children[child].composition_steps)}')
         return self
 
     @property

@@ -11,7 +11,7 @@ in-process with :func:`register_kind` (the runtime tests' probes).
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
 
 from ..computation.functional_entity import FunctionalEntity
 
@@ -55,8 +55,8 @@ def register_kind(name: str, cls: type[FunctionalEntity]) -> None:
     _REGISTERED[name] = cls
 
 
-def _plugins() -> dict[str, object]:
-    found: dict[str, object] = {}
+def _plugins() -> dict[str, EntryPoint]:
+    found: dict[str, EntryPoint] = {}
     for point in entry_points(group=ENTRY_POINTS):
         found[point.name] = point
         found.setdefault(point.value, point)

@@ -13,6 +13,7 @@ an executor callback (the Composer's CleanupComputation) while the agent's repor
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 import threading
@@ -53,9 +54,9 @@ class RemoteProcess:
     def poll(self) -> int | None:
         return self.returncode
 
-    def wait(self, timeout: float | None = None) -> int:
+    def wait(self, timeout: float | None = None) -> int | None:
         if not self._ended.wait(timeout):
-            raise subprocess.TimeoutExpired(f'{self.namespace} on {self.host}', timeout)
+            raise subprocess.TimeoutExpired(f'{self.namespace} on {self.host}', timeout or 0.0)
         return self.returncode
 
     def kill(self) -> None:
@@ -106,8 +107,8 @@ class HostClient:
             if host not in self._agents:
                 self._agents[host] = _Agent(self._node, host)
                 self._node.create_subscription(Event, status_topic(host),
-                                               lambda msg, host=host: self._on_status(host, msg), AGENT_QOS)
-            process = self._processes[request['id']] = RemoteProcess(client=self, host=host, request=request)
+                                               functools.partial(self._on_status, host), AGENT_QOS)
+            process = self._processes[str(request['id'])] = RemoteProcess(client=self, host=host, request=request)
         self.send(host, 'start', request)
         return process
 

@@ -38,8 +38,7 @@ def port_of(model: CompositeModel, namespace: str, ref: str) -> tuple[PortSpec, 
 
 def _leaf_port(entity: EntityModel, namespace: str, port_name: str) -> tuple[PortSpec, str]:
     cls = resolve_kind(entity.kind)
-    params = dict(cls.PARAMETERS)
-    params.update(entity.parameters)
+    params = cls.parameters_of(entity.parameters)
     for spec in cls.port_specs(params):
         if spec.name == port_name:
             topic = FunctionalEntity.port_topic(namespace, entity.name, port_name)

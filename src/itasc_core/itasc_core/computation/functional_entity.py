@@ -2,66 +2,67 @@
 
 A Functional Entity declares its ports with metadata (paper Listing 1) as a pure function of its
 parameters, so that a Composer can check connections from the model alone, in any process. Its
-parameters are ROS 2 parameters, set by the Configurator; its ``update`` is called by the
-Scheduler. It knows no other entity: it reads its input ports, writes its output ports and raises
-events (§3.1, boundary of knowledge).
+parameters are ROS 2 parameters, typed by one pydantic model per kind (:mod:`.parameters`), set by
+the Configurator or from outside (``ros2 param set``), every change and refusal raised as an event;
+its ``update`` is called by the Scheduler. It knows no other entity: it reads
+its input ports, writes its output ports and raises events (§3.1, boundary of knowledge).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any, ClassVar
 
+from pydantic import ValidationError
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
+from ..communication.event_names import PARAMETER_REFUSED, PARAMETER_SET, event
 from ..communication.ports import InputPort, OutputPort, PortSpec
 from ..entity import CompositeContext, Entity
+from ..kinds import UnknownKind
+from .parameters import NoParameters, ParameterModel, declarations, flatten, nest, problems
 
-__all__ = ['FunctionalEntity', 'coerce']
-
-
-def coerce(default: Any, value: Any) -> Any:
-    """Match a model value to the parameter's declared type (YAML writes 1 for 1.0)."""
-    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    if isinstance(default, list) and default and isinstance(default[0], float) and isinstance(value, list):
-        return [float(v) for v in value]
-    return value
+__all__ = ['FunctionalEntity']
 
 
 class FunctionalEntity(Entity):
     """Base class of every leaf Functional Entity.
 
-    Subclasses set :attr:`PARAMETERS` (name -> default), implement :meth:`port_specs`,
-    :meth:`configure` (read parameters into attributes) and :meth:`update`.
+    Subclasses set :attr:`Parameters` (their parameter model), implement :meth:`port_specs`,
+    :meth:`configure` (take the parameters into use) and :meth:`update`.
     """
 
-    #: ROS parameters of the entity and their defaults.
-    PARAMETERS: ClassVar[dict[str, Any]] = {}
+    #: The model of the entity's parameters (:mod:`.parameters`).
+    Parameters: ClassVar[type[ParameterModel]] = NoParameters
+    #: Who sets parameters now (see :meth:`set_by`).
+    cause: str = 'set from outside'
 
-    def __init__(self, name: str, *, composite: CompositeContext, parameters: dict[str, Any] | None = None) -> None:
+    def __init__(self, name: str, *, composite: CompositeContext, parameters: Mapping[str, Any] | None = None) -> None:
         super().__init__(name, composite=composite)
         self.inputs: dict[str, InputPort] = {}
         self.outputs: dict[str, OutputPort] = {}
         try:
-            values = dict(self.PARAMETERS)
-            values.update({k: coerce(self.PARAMETERS.get(k), v) for k, v in (parameters or {}).items()})
-            unknown = set(values) - set(self.PARAMETERS)
-            if unknown:
-                raise ValueError(f'{type(self).__name__} {name}: unknown parameters {sorted(unknown)}; '
-                                 f'known: {sorted(self.PARAMETERS)}')
-            for key, value in values.items():
-                self.declare_parameter(key, value)
-            self.params: dict[str, Any] = values
+            try:
+                values = self.parameters_of(parameters or {})
+            except (ValidationError, UnknownKind) as err:
+                raise ValueError(f'{type(self).__name__} {name}: {problems(err)}') from None
+            self._types: dict[str, Parameter.Type] = {}
+            for key, value, descriptor in declarations(values):
+                self._types[key] = Parameter.Type(descriptor.type)
+                if isinstance(value, list) and not value:  # an empty list has no type of its own
+                    self.declare_parameter(key, self._types[key], descriptor)
+                    self.set_parameters([Parameter(key, self._types[key], [])])
+                else:
+                    self.declare_parameter(key, value, descriptor)
+            self.params = values
             for spec in self.port_specs(values):
                 topic = self.port_topic(composite.namespace, name, spec.name)
                 if spec.direction == 'input':
                     self.inputs[spec.name] = InputPort(self, spec.with_id(topic))
                 else:
                     self.outputs[spec.name] = OutputPort(self, spec.with_id(topic))
-            reason = self.validate_parameters(values)
-            if reason:  # later changes are checked by _check_parameters
-                raise ValueError(f'{type(self).__name__} {name}: {reason}')
             self.add_on_set_parameters_callback(self._check_parameters)
             self.add_post_set_parameters_callback(self._parameters_set)
             self.configure(values)
@@ -74,30 +75,89 @@ class FunctionalEntity(Entity):
         return f'{namespace}/{entity}/{port}'
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+    def port_specs(cls, params: Any) -> list[PortSpec]:
         """The entity's ports (metadata only) for the given parameters."""
         return []
 
     # -- configuration ----------------------------------------------------------------------------
 
-    def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        """Return why ``params`` are unacceptable, or None."""
-        return None
+    @classmethod
+    def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
+        """The model that validates ``values`` (a kind whose parameters depend on one of them, e.g.
+        a chain's type, chooses here)."""
+        return cls.Parameters
+
+    @classmethod
+    def parameters_of(cls, values: Mapping[str, Any]) -> ParameterModel:
+        """``values`` (a model's ``parameters``, nested) validated; raises pydantic's ValidationError."""
+        return cls.parameter_model(values).model_validate(values)
+
+    def ros_parameters(self, changes: Mapping[str, Any]) -> list[Parameter]:
+        """``changes`` (dotted names -> values, e.g. a named configuration's) as typed ROS parameters,
+        checked against the model with the entity's other values; ValueError says why they do not fit."""
+        current = flatten(self.params)
+        unknown = sorted(set(changes) - set(current))
+        if unknown:
+            raise ValueError(f'no parameters {unknown}; parameters: {sorted(current)}')
+        try:
+            proposed = flatten(self.parameters_of(nest({**current, **changes})))
+        except (ValidationError, UnknownKind) as err:
+            raise ValueError(problems(err)) from None
+        return [Parameter(key, self._types[key], proposed[key]) for key in changes]
+
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        """rclpy's, with every refusal raised as ``e_<entity>_parameter_refused`` (see :meth:`_refused`)."""
+        results = super().set_parameters(parameter_list)
+        for parameter, result in zip(parameter_list, results):
+            self._refused([parameter], result)
+        return results
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """rclpy's (what a ``~/set_parameters`` request, ``ros2 param set``, runs), with a refusal
+        raised as ``e_<entity>_parameter_refused``."""
+        result = super().set_parameters_atomically(parameter_list)
+        self._refused(parameter_list, result)
+        return result
+
+    def _refused(self, parameters: list[Parameter], result: SetParametersResult) -> None:
+        """A change refused by rclpy (the declared type and range) or by the parameter model
+        (:meth:`_check_parameters`) goes into the recording: detail ``<parameters>: <why> (<cause>)``."""
+        if not result.successful:
+            names = ', '.join(f'{p.name} = {p.value!r}' for p in parameters)
+            self.raise_event(event(self.entity_name, PARAMETER_REFUSED),
+                             detail=f'{names}: {result.reason} ({self.cause})')
 
     def _check_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        proposed = dict(self.params)
-        proposed.update({p.name: p.value for p in parameters})
-        unknown = sorted(set(proposed) - set(self.PARAMETERS))
-        if unknown:
-            return SetParametersResult(successful=False, reason=f'unknown parameters {unknown}')
-        reason = self.validate_parameters(proposed)
-        return SetParametersResult(successful=reason is None, reason=reason or '')
+        proposed = flatten(self.params) | {p.name: p.value for p in parameters}
+        try:
+            self.parameters_of(nest(proposed))
+        except (ValidationError, UnknownKind) as err:
+            return SetParametersResult(successful=False, reason=problems(err))
+        return SetParametersResult(successful=True)
 
     def _parameters_set(self, parameters: list[Parameter]) -> None:
-        self.params.update({p.name: p.value for p in parameters})
+        """Taken into use at once (in an executor callback: between two ticks), and raised as
+        ``e_<entity>_parameter_set`` per parameter that changed (detail ``kp: 1.0 -> 2.0 (<cause>)``),
+        so that the recording holds every change."""
+        before = flatten(self.params)
+        self.params = self.parameters_of(nest(before | {p.name: p.value for p in parameters}))
         self.configure(self.params)
+        after = flatten(self.params)
+        for name in [p.name for p in parameters if before.get(p.name) != after.get(p.name)]:
+            self.raise_event(event(self.entity_name, PARAMETER_SET),
+                             detail=f'{name}: {before.get(name)!r} -> {after[name]!r} ({self.cause})')
 
-    def configure(self, params: dict[str, Any]) -> None:
+    @contextmanager
+    def set_by(self, cause: str) -> Iterator[None]:
+        """Parameters set within the block are ``cause``'s (e.g. a named configuration), not
+        someone's outside (``ros2 param set``)."""
+        self.cause, previous = cause, self.cause
+        try:
+            yield
+        finally:
+            self.cause = previous
+
+    def configure(self, params: Any) -> None:
         """Take (new) parameter values into use."""
 
     # -- life cycle, driven by the Scheduler ----------------------------------------------------------
@@ -130,6 +190,6 @@ class FunctionalEntity(Entity):
     def destroy_node(self) -> None:
         for port in self.inputs.values():
             port.disconnect()
-        for port in self.outputs.values():
-            port.destroy()
+        for output in self.outputs.values():
+            output.destroy()
         super().destroy_node()

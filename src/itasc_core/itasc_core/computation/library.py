@@ -6,12 +6,12 @@ itself (``config/apps/pattern_demo.yaml``) and by the runtime's tests.
 from __future__ import annotations
 
 import math
-from typing import Any
-
+from pydantic import Field
 from std_msgs.msg import Float64MultiArray
 
 from ..communication.ports import PortSpec
 from .functional_entity import FunctionalEntity
+from .parameters import ParameterModel
 
 __all__ = ['SineSource', 'PController', 'Integrator', 'Sum']
 
@@ -30,15 +30,25 @@ def _msg(values: list[float]) -> Float64MultiArray:
 class SineSource(FunctionalEntity):
     """A periodic setpoint generator: ``offset + amplitude * sin(2π f t)`` on ``size`` channels."""
 
-    PARAMETERS = {'amplitude': 1.0, 'frequency': 0.5, 'offset': 0.0, 'size': 1, 'semantics': 'Position(x)'}
+    class Parameters(ParameterModel):
+        amplitude: float = 1.0
+        """Amplitude of the sine."""
+        frequency: float = Field(default=0.5, ge=0)
+        """Frequency [Hz]."""
+        offset: float = 0.0
+        """Centre of the sine."""
+        size: int = Field(default=1, ge=1)
+        """Number of channels."""
+        semantics: str = 'Position(x)'
+        """Semantics of the output port."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return [_signal('signal', 'output', params['semantics'])]
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        return [_signal('signal', 'output', params.semantics)]
 
-    def configure(self, params: dict[str, Any]) -> None:
-        self.amplitude, self.frequency = params['amplitude'], params['frequency']
-        self.offset, self.size = params['offset'], params['size']
+    def configure(self, params: Parameters) -> None:
+        self.amplitude, self.frequency = params.amplitude, params.frequency
+        self.offset, self.size = params.offset, params.size
 
     def update(self, t: float) -> None:
         value = self.offset + self.amplitude * math.sin(2.0 * math.pi * self.frequency * t)
@@ -48,24 +58,27 @@ class SineSource(FunctionalEntity):
 class PController(FunctionalEntity):
     """A proportional constraint controller with saturation: ``u = sat(kp (setpoint - measured))``."""
 
-    PARAMETERS = {'kp': 1.0, 'max_output': 10.0, 'semantics': 'Position(x)', 'command_semantics': 'Velocity(x)'}
+    class Parameters(ParameterModel):
+        kp: float = Field(default=1.0, ge=0)
+        """Proportional gain [1/s]."""
+        max_output: float = Field(default=10.0, gt=0)
+        """Saturation of the command."""
+        semantics: str = 'Position(x)'
+        """Semantics of the setpoint and the measurement."""
+        command_semantics: str = 'Velocity(x)'
+        """Semantics of the command."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
         return [
-            _signal('setpoint', 'input', params['semantics']),
-            _signal('measured', 'input', params['semantics']),
-            _signal('command', 'output', params['command_semantics']),
-            _signal('error', 'output', params['semantics'] + '.error'),
+            _signal('setpoint', 'input', params.semantics),
+            _signal('measured', 'input', params.semantics),
+            _signal('command', 'output', params.command_semantics),
+            _signal('error', 'output', params.semantics + '.error'),
         ]
 
-    def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        if params['kp'] < 0 or params['max_output'] <= 0:
-            return 'kp must be >= 0 and max_output > 0'
-        return None
-
-    def configure(self, params: dict[str, Any]) -> None:
-        self.kp, self.max_output = params['kp'], params['max_output']
+    def configure(self, params: Parameters) -> None:
+        self.kp, self.max_output = params.kp, params.max_output
 
     def update(self, t: float) -> None:
         setpoint, measured = self.inputs['setpoint'].latest, self.inputs['measured'].latest
@@ -82,15 +95,23 @@ class PController(FunctionalEntity):
 class Integrator(FunctionalEntity):
     """A plant stand-in: integrates the commanded rate, ``x += u dt``."""
 
-    PARAMETERS = {'size': 1, 'initial': 0.0, 'semantics': 'Position(x)', 'rate_semantics': 'Velocity(x)'}
+    class Parameters(ParameterModel):
+        size: int = Field(default=1, ge=1)
+        """Number of channels."""
+        initial: float = 0.0
+        """Initial state of every channel."""
+        semantics: str = 'Position(x)'
+        """Semantics of the state."""
+        rate_semantics: str = 'Velocity(x)'
+        """Semantics of the rate."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return [_signal('rate', 'input', params['rate_semantics']), _signal('state', 'output', params['semantics'])]
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        return [_signal('rate', 'input', params.rate_semantics), _signal('state', 'output', params.semantics)]
 
-    def configure(self, params: dict[str, Any]) -> None:
+    def configure(self, params: Parameters) -> None:
         if not hasattr(self, 'x'):
-            self.x = [params['initial']] * params['size']
+            self.x = [params.initial] * params.size
         self._last_t: float | None = None
 
     def update(self, t: float) -> None:
@@ -105,15 +126,19 @@ class Integrator(FunctionalEntity):
 class Sum(FunctionalEntity):
     """Adds the newest sample of every connected source."""
 
-    PARAMETERS = {'size': 1, 'semantics': 'Velocity(x)'}
+    class Parameters(ParameterModel):
+        size: int = Field(default=1, ge=1)
+        """Number of channels."""
+        semantics: str = 'Velocity(x)'
+        """Semantics of the inputs and the sum."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        return [_signal('inputs', 'input', params['semantics'], multiple=True),
-                _signal('sum', 'output', params['semantics'])]
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        return [_signal('inputs', 'input', params.semantics, multiple=True),
+                _signal('sum', 'output', params.semantics)]
 
-    def configure(self, params: dict[str, Any]) -> None:
-        self.size = params['size']
+    def configure(self, params: Parameters) -> None:
+        self.size = params.size
 
     def update(self, t: float) -> None:
         total = [0.0] * self.size

@@ -40,12 +40,12 @@ class OutsideEvents(Entity):
             if spec.topic is not None:
                 self.create_subscription(cls, spec.topic, partial(self._on_message, k), 10)
             else:
-                self.create_service(cls, spec.service, partial(self._on_call, k))
+                self.create_service(cls, spec.service or '', partial(self._on_call, k))
 
     def _on_message(self, k: int, msg: Any) -> None:
         spec = self.events[k]
         if spec.field is None:
-            self.raise_event(spec.event, detail=spec.topic)
+            self.raise_event(spec.event, detail=spec.topic or '')
             return
         value = read(msg, spec.field)
         matches = value == spec.value
@@ -58,7 +58,7 @@ class OutsideEvents(Entity):
         value = read(request, spec.field) if spec.field is not None else None
         matches = spec.field is None or value == spec.value
         if matches:
-            self.raise_event(spec.event, detail=spec.service + (f': {spec.field}={value}' if spec.field else ''))
+            self.raise_event(spec.event, detail=f'{spec.service}' + (f': {spec.field}={value}' if spec.field else ''))
         if hasattr(response, 'success'):
             response.success = matches
         if hasattr(response, 'message'):

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from rclpy.node import Node
-from rclpy.parameter import Parameter
 
-from ..computation.functional_entity import coerce
+from ..communication.event_names import (APPLIED, CONFIGURE_ENTITIES, CONFIGURE_FAILED, ENTITIES_CONFIGURED,
+                                          FAILED, event, named)
+from ..computation.functional_entity import FunctionalEntity
 from ..entity import CompositeContext, Entity
 
 __all__ = ['Configurator']
@@ -33,35 +33,37 @@ class Configurator(Entity):
         composite: CompositeContext,
         configurations: dict[str, Configuration],
         initial: list[str],
-        entities: Callable[[str], Node | None],
+        entities: Callable[[str], FunctionalEntity | None],
     ) -> None:
         super().__init__('configurator', composite=composite)
         self.configurations = dict(configurations)
         self.initial = list(initial)
         self._entities = entities
         self.applied: list[str] = []
+        #: The event of each configuration (``e_<configuration>``).
+        self._events_of = {named(c): c for c in self.configurations}
         self._events = self.listen(topics=[composite.events_topic], on_priority=self._on_event,
                                      accept=self._accepts, immediate=True)
 
     def _accepts(self, name: str) -> bool:
-        return name == self._configure_event or name.removeprefix('e_') in self.configurations
+        return name == self._configure_event or name in self._events_of
 
     @property
     def _configure_event(self) -> str:
-        return f'e_{self.composite.name}_configure_entities'
+        return event(self.composite.name, CONFIGURE_ENTITIES)
 
     def _on_event(self, msg) -> None:
         c = self.composite.name
         if msg.name == self._configure_event:
             failure = next(filter(None, (self.apply(name) for name in self.initial)), None)
             if failure:
-                self.raise_event(f'e_{c}_configure_failed', detail=failure)
+                self.raise_event(event(c, CONFIGURE_FAILED), detail=failure)
             else:
-                self.raise_event(f'e_{c}_entities_configured')
+                self.raise_event(event(c, ENTITIES_CONFIGURED))
             return
-        name = msg.name.removeprefix('e_')
+        name = self._events_of[msg.name]
         failure = self.apply(name)
-        self.raise_event(f'e_{name}_failed' if failure else f'e_{name}_applied', detail=failure or '')
+        self.raise_event(event(name, FAILED if failure else APPLIED), detail=failure or '')
 
     def apply(self, name: str) -> str | None:
         """Apply configuration ``name``; return why it failed, or None."""
@@ -69,12 +71,13 @@ class Configurator(Entity):
             entity = self._entities(entity_name)
             if entity is None:
                 return f"configuration '{name}': entity '{entity_name}' is not deployed"
-            declared = {k: entity.get_parameter(k).value for k in values if entity.has_parameter(k)}
-            missing = sorted(set(values) - set(declared))
-            if missing:
-                return f"configuration '{name}': {entity_name} has no parameters {missing}"
-            parameters = [Parameter(k, value=coerce(declared[k], v)) for k, v in values.items()]
-            for result in entity.set_parameters(parameters):
+            try:
+                parameters = entity.ros_parameters(values)
+            except ValueError as err:
+                return f"configuration '{name}' on {entity_name}: {err}"
+            with entity.set_by(f'configuration {name}'):
+                results = entity.set_parameters(parameters)
+            for result in results:
                 if not result.successful:
                     return f"configuration '{name}' on {entity_name}: {result.reason}"
         self.applied.append(name)

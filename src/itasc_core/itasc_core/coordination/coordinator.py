@@ -5,7 +5,9 @@ commands) into the life-cycle FSM of :mod:`.lifecycle` and publishes the events 
 Common events are buffered and processed at the Coordinator's next update (a periodic timer);
 priority events (``e_emergency``) are processed on arrival (§6.2). It publishes its fully
 qualified state on ``<composite namespace>/state`` on every change, and offers the operator
-services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``).
+services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``, ``~/compose``). A
+parent's command of a composition step (``e_<c>_compose_<step>``) goes to the composite's
+Composer, whose answer (``e_<c>_composed`` / ``e_<c>_compose_failed``) goes back up.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from typing import Iterable
 
 from itasc_msgs.msg import CoordinatorState
 
-from ..communication.event_names import from_parent, is_addressed_to
+from ..communication.event_names import (CHILD_ADDED, CHILD_REMOVED, COMPOSE_FAILED, COMPOSED, NOTIFICATIONS, TIMEOUT,
+                                          event, from_parent, is_addressed_to, step_of)
 from ..communication.events import EventRaiser
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
@@ -41,6 +44,7 @@ class Coordinator(Entity):
         children: Iterable[str] = (),
         running: RunningFsmSpec | None = None,
         safety_to_parent: Iterable[str] = (),
+        steps: Iterable[str] = (),
         update_rate: float = 200.0,
         startup_timeout: float = STARTUP_TIMEOUT,
     ) -> None:
@@ -61,13 +65,17 @@ class Coordinator(Entity):
         )
         self._safety_to_parent = tuple(safety_to_parent)
         self.operator = Operator(self, composite=composite, fsm=self.fsm, raise_own=self._raiser.raise_event,
-                                 to_parent=None if self.is_root else self._to_parent)
+                                 to_parent=None if self.is_root else self._to_parent, steps=steps)
+        c = composite.name
+        #: The answers of this composite's Composer to a composition step (:mod:`..composition.steps`).
+        self._step_answers = (event(c, COMPOSED), event(c, COMPOSE_FAILED))
+        self._structure = {event(c, CHILD_ADDED): self.fsm.adopt, event(c, CHILD_REMOVED): self.fsm.release}
         self._events = self.listen(topics=[composite.events_topic], on_priority=self._process,
                                      accept=self._accepts, on_gap=self._gap)
         self._parent_events = None if self.is_root else self.listen(
             topics=[composite.parent_events_topic], on_priority=self._process_parent,
             accept=self._accepts_parent, on_gap=self._gap)
-        self._notifications = {f'e_{composite.name}_{n}' for n in ('configured', 'started', 'running', 'stopped')}
+        self._notifications = {event(composite.name, n) for n in NOTIFICATIONS}
         self._startup_timeout = startup_timeout
         self._entered_at = time.monotonic()
         self._update_timer = self.create_timer(1.0 / update_rate, self.update)
@@ -77,7 +85,7 @@ class Coordinator(Entity):
         return self.fsm.state
 
     def _accepts(self, name: str) -> bool:
-        return self.fsm.is_relevant(name) or name == f'e_{self.composite.name}_composed' \
+        return self.fsm.is_relevant(name) or name in self._structure or name in self._step_answers \
             or self.operator.accepts(name)
 
     def _accepts_parent(self, name: str) -> bool:
@@ -90,6 +98,9 @@ class Coordinator(Entity):
         if msg.source == self.get_fully_qualified_name():
             return  # our own notifications to the parent
         if self.operator.consume_parent(msg):
+            return
+        if step_of(self.composite.name, msg.name) is not None:  # a step of this composite: for its Composer
+            self._raiser.raise_event(msg.name, detail=msg.detail)
             return
         if self.fsm.is_relevant(msg.name):
             self._process(msg)
@@ -108,16 +119,22 @@ class Coordinator(Entity):
                 self._process_parent(msg)
         if self.fsm.starting_up and time.monotonic() - self._entered_at > self._startup_timeout:
             waiting = self.fsm.waiting_for()
-            self._raiser.raise_event(f'e_{self.composite.name}_timeout', priority=True,
+            self._raiser.raise_event(event(self.composite.name, TIMEOUT), priority=True,
                                      detail=f'{self.state} waited {self._startup_timeout:g} s for {waiting}')
-            self.fsm.process(f'e_{self.composite.name}_timeout')
+            self.fsm.process(event(self.composite.name, TIMEOUT))
         self.operator.update()
 
     def _process(self, msg) -> None:
-        if msg.name == f'e_{self.composite.name}_composed':
-            for child in filter(None, msg.detail.split(',')):
-                self.fsm.adopt(child)
+        change = self._structure.get(msg.name)
+        if change is not None:  # the Composer added or removed a child composite while running
+            change(msg.detail)
             return
+        if msg.name in self._step_answers:
+            self.operator.composed(msg)
+            if not self.is_root:  # the parent (its Composer, its recording) hears how it went
+                self._to_parent.raise_event(msg.name, detail=msg.detail)
+            if not self.fsm.is_relevant(msg.name):
+                return
         if self.operator.consume(msg):
             return
         self.fsm.process(msg.name)

@@ -43,6 +43,7 @@ from typing import Callable, Iterable
 
 from transitions.extensions.nesting import HierarchicalMachine, NestedState
 
+from ..communication import event_names as names
 from ..communication.event_names import SAFETY_EVENT
 
 __all__ = [
@@ -62,20 +63,20 @@ Raise = Callable[[str, bool], None]
 #: Events raised on entering a state: to this composite's entities ('own'), to every child's
 #: Coordinator ('children'), or to the parent's Coordinator ('parent'), e.g. ``e_<composite>_deploy``.
 _ENTRY_EVENTS: dict[str, tuple[tuple[str, str], ...]] = {
-    'DeployEntities': (('own', 'deploy'),),
-    'ConfigureEntities': (('own', 'configure_entities'), ('children', 'configure')),
-    'ConnectEntities': (('own', 'connect'),),
-    'NotifyConfigured': (('parent', 'configured'),),
-    'Starting': (('own', 'scheduler_initialize'), ('children', 'start')),
-    'Started': (('parent', 'started'),),
-    'PreRunning': (('children', 'run'), ('own', 'scheduler_activate')),
-    'Running': (('parent', 'running'),),
-    'Stopping': (('children', 'stop'),),
-    'Disengage': (('own', 'disengage'),),
-    'CleanupComputation': (('own', 'cleanup_computation'),),
-    'Cleanup': (('own', 'cleanup'),),
-    'NotifyStopped': (('parent', 'stopped'),),
-    'Safety': (('own', 'safety'), ('children', 'emergency')),
+    'DeployEntities': (('own', names.DEPLOY),),
+    'ConfigureEntities': (('own', names.CONFIGURE_ENTITIES), ('children', names.CONFIGURE)),
+    'ConnectEntities': (('own', names.CONNECT),),
+    'NotifyConfigured': (('parent', names.CONFIGURED),),
+    'Starting': (('own', names.SCHEDULER_INITIALIZE), ('children', names.START)),
+    'Started': (('parent', names.STARTED),),
+    'PreRunning': (('children', names.RUN), ('own', names.SCHEDULER_ACTIVATE)),
+    'Running': (('parent', names.RUNNING),),
+    'Stopping': (('children', names.STOP),),
+    'Disengage': (('own', names.DISENGAGE),),
+    'CleanupComputation': (('own', names.CLEANUP_COMPUTATION),),
+    'Cleanup': (('own', names.CLEANUP),),
+    'NotifyStopped': (('parent', names.STOPPED),),
+    'Safety': (('own', names.SAFETY), ('children', names.EMERGENCY)),
 }
 
 
@@ -166,7 +167,7 @@ class LifecycleFsm:
         self._add_transitions()
         self._stopping = next(t for t in self._transitions if t.source == 'Active.Stop.Stopping')
         self._relevant = {SAFETY_EVENT}.union(*(t.requires for t in self._transitions))
-        self._relevant |= {self.ev('stopped', k) for k in self.children}
+        self._relevant |= {self.event(names.STOPPED, k) for k in self.children}
         self._machine = _Machine(
             model=self,
             states=self._states(),
@@ -183,8 +184,8 @@ class LifecycleFsm:
 
     # -- event names ------------------------------------------------------------------------------
 
-    def ev(self, suffix: str, name: str | None = None) -> str:
-        return f'e_{name or self.composite}_{suffix}'
+    def event(self, suffix: str, name: str | None = None) -> str:
+        return names.event(name or self.composite, suffix)
 
     def is_relevant(self, event: str) -> bool:
         """Whether this FSM reacts to ``event`` (anything else is ignored without cost)."""
@@ -212,9 +213,9 @@ class LifecycleFsm:
         if self.state != 'Safety':
             return False
         self._self_driven = not self.is_root  # the root drives itself anyway
-        return self.process(self.ev('configure'))
+        return self.process(self.event(names.CONFIGURE))
 
-    # -- run-time re-composition ----------------------------------------------------------------------
+    # -- run-time re-composition (:mod:`..composition.steps`) ------------------------------------------
 
     def adopt(self, child: str) -> None:
         """A child composite added while this one runs (paper §6.1: a new Task goes through the
@@ -223,21 +224,31 @@ class LifecycleFsm:
         if child in self.children:
             return
         self.children = self.children + (child,)
-        self._stopping.requires = self._stopping.requires | {self.ev('stopped', child)}
-        self._relevant |= {self.ev(suffix, child) for suffix in ('configured', 'started', 'running', 'stopped')}
-        self._adopted[child] = 'configure'
-        self._raise(self.ev('configure', child), False)
+        self._stopping.requires = self._stopping.requires | {self.event(names.STOPPED, child)}
+        self._relevant |= {self.event(suffix, child) for suffix in names.NOTIFICATIONS}
+        self._adopted[child] = names.CONFIGURE
+        self._raise(self.event(names.CONFIGURE, child), False)
+
+    def release(self, child: str) -> None:
+        """A child composite removed while this one runs: command it to stop (it stops in order,
+        then its parent's Composer destroys it), and no longer coordinate it."""
+        if child not in self.children:
+            return
+        self.children = tuple(c for c in self.children if c != child)
+        self._stopping.requires = self._stopping.requires - {self.event(names.STOPPED, child)}
+        self._adopted.pop(child, None)
+        self._raise(self.event(names.STOP, child), False)
 
     def _drive_adopted(self, event: str) -> None:
         for child, step in self._adopted.items():
-            if step == 'configure' and event == self.ev('configured', child):
-                self._adopted[child] = 'start'
-                self._raise(self.ev('start', child), False)
-            elif step == 'start' and event == self.ev('started', child):
-                self._adopted[child] = 'run'
-                self._raise(self.ev('run', child), False)
-            elif step == 'run' and event == self.ev('running', child):
-                self._adopted[child] = 'running'
+            if step == names.CONFIGURE and event == self.event(names.CONFIGURED, child):
+                self._adopted[child] = names.START
+                self._raise(self.event(names.START, child), False)
+            elif step == names.START and event == self.event(names.STARTED, child):
+                self._adopted[child] = names.RUN
+                self._raise(self.event(names.RUN, child), False)
+            elif step == names.RUN and event == self.event(names.RUNNING, child):
+                self._adopted[child] = names.RUNNING
 
     # -- processing ---------------------------------------------------------------------------------
 
@@ -250,7 +261,7 @@ class LifecycleFsm:
         moved = False
         # Bounded: every pass enters a new state; transitions that need no event chain on.
         for _ in range(64):
-            if not self._evaluate():
+            if not self._evaluate():  # type: ignore[attr-defined]  # a trigger transitions adds to the model
                 return moved
             moved = True
         raise RuntimeError(f'{self.composite}: life-cycle FSM does not settle in {self.state}')
@@ -314,51 +325,51 @@ class LifecycleFsm:
         ]
 
     def _add_transitions(self) -> None:
-        ev, kids = self.ev, self.children
+        e, kids = self.event, self.children
         configured = 'Active.Configure.Configured'
 
         def add(source: str, target: str, *requires: str) -> None:
             self._transitions.append(_Transition(source, target, frozenset(requires)))
 
         # Safety first: it has priority over every other transition of Active.
-        for failure in ('deploy_failed', 'configure_failed', 'connect_failed', 'scheduler_failed'):
-            add('Active', 'Safety', ev(failure))
+        for failure in (names.DEPLOY_FAILED, names.CONFIGURE_FAILED, names.CONNECT_FAILED, names.SCHEDULER_FAILED):
+            add('Active', 'Safety', e(failure))
         add('Active', 'Safety', SAFETY_EVENT)
-        add('Active', 'Safety', ev('emergency'))  # the parent entered Safety: so does every child
-        add('Active', 'Safety', ev('timeout'))  # a start-up state waited too long (see STARTUP_TIMEOUT)
-        add('Init', 'Active', ev('configure'))
-        add('Safety', 'Active', ev('configure'))  # leaving Safety requires reconfiguration
-        add('Safety', 'Active.Stop', ev('stop'))  # an orderly teardown is still possible
+        add('Active', 'Safety', e(names.EMERGENCY))  # the parent entered Safety: so does every child
+        add('Active', 'Safety', e(names.TIMEOUT))  # a start-up state waited too long (see STARTUP_TIMEOUT)
+        add('Init', 'Active', e(names.CONFIGURE))
+        add('Safety', 'Active', e(names.CONFIGURE))  # leaving Safety requires reconfiguration
+        add('Safety', 'Active.Stop', e(names.STOP))  # an orderly teardown is still possible
 
         add('Active.Configure.Configuring.DeployEntities', 'Active.Configure.Configuring.ConfigureEntities',
-            ev('deployed'))
+            e(names.DEPLOYED))
         add('Active.Configure.Configuring.ConfigureEntities', configured,
-            ev('entities_configured'), *(ev('configured', k) for k in kids))
-        add(f'{configured}.ConnectEntities', f'{configured}.NotifyConfigured', ev('connected'))
-        own = () if self.is_root else (ev('start'),)
+            e(names.ENTITIES_CONFIGURED), *(e(names.CONFIGURED, k) for k in kids))
+        add(f'{configured}.ConnectEntities', f'{configured}.NotifyConfigured', e(names.CONNECTED))
+        own = () if self.is_root else (e(names.START),)
         add(f'{configured}.NotifyConfigured', 'Active.Start', *own)
         add('Active.Start.Starting', 'Active.Start.Started',
-            ev('scheduler_initialized'), *(ev('started', k) for k in kids))
-        own = () if self.is_root else (ev('run'),)
+            e(names.SCHEDULER_INITIALIZED), *(e(names.STARTED, k) for k in kids))
+        own = () if self.is_root else (e(names.RUN),)
         add('Active.Start.Started', 'Active.Run', *own)
         add('Active.Run.PreRunning', 'Active.Run.Running',
-            ev('scheduler_activated'), *(ev('running', k) for k in kids))
+            e(names.SCHEDULER_ACTIVATED), *(e(names.RUNNING, k) for k in kids))
         if self._running is not None:
             for t in self._running.transitions:
                 add(f'Active.Run.Running.{t.source}', f'Active.Run.Running.{t.target}', *t.events)
         # A parent reconfiguring (e.g. after its own Safety) reconfigures its children too.
-        add('Active.Start', 'Active', ev('configure'))
-        add('Active.Run', 'Active', ev('configure'))
-        add('Active.Configure', 'Active.Stop', ev('stop'))
-        add('Active.Start', 'Active.Stop', ev('stop'))
-        add('Active.Run', 'Active.Stop', ev('stop'))
+        add('Active.Start', 'Active', e(names.CONFIGURE))
+        add('Active.Run', 'Active', e(names.CONFIGURE))
+        add('Active.Configure', 'Active.Stop', e(names.STOP))
+        add('Active.Start', 'Active.Stop', e(names.STOP))
+        add('Active.Run', 'Active.Stop', e(names.STOP))
         # Stopping waits for the children that were commanded to configure (see _entry_actions): a
         # stop during DeployEntities finds children that never started, with nothing to stop.
         add('Active.Stop.Stopping', 'Active.Stop.Stopped')
         stopped = 'Active.Stop.Stopped'
-        add(f'{stopped}.Disengage', f'{stopped}.CleanupComputation', ev('disengaged'))
-        add(f'{stopped}.CleanupComputation', f'{stopped}.Cleanup', ev('computation_cleaned'))
-        add(f'{stopped}.Cleanup', f'{stopped}.NotifyStopped', ev('cleaned'))
+        add(f'{stopped}.Disengage', f'{stopped}.CleanupComputation', e(names.DISENGAGED))
+        add(f'{stopped}.CleanupComputation', f'{stopped}.Cleanup', e(names.COMPUTATION_CLEANED))
+        add(f'{stopped}.Cleanup', f'{stopped}.NotifyStopped', e(names.CLEANED))
 
     def _entry_actions(self, state: str) -> None:
         """Raise the events of ``state`` (Fig. 5): -ing states act on this composite, then on its
@@ -374,14 +385,14 @@ class LifecycleFsm:
             return
         for target, suffix in _ENTRY_EVENTS.get(leaf, ()):
             if target == 'own':
-                self._raise(self.ev(suffix), False)
+                self._raise(self.event(suffix), False)
             elif target == 'children':
                 for child in self.children:
-                    if suffix == 'configure':  # from now on it has something to stop
-                        self._stopping.requires = self._stopping.requires | {self.ev('stopped', child)}
-                    self._raise(self.ev(suffix, child), False)
+                    if suffix == names.CONFIGURE:  # from now on it has something to stop
+                        self._stopping.requires = self._stopping.requires | {self.event(names.STOPPED, child)}
+                    self._raise(self.event(suffix, child), False)
             else:
-                self._raise(self.ev(suffix), True)
+                self._raise(self.event(suffix), True)
         if state == 'Safety':
             for name in self._safety_to_parent:
                 self._raise(name, True)
@@ -390,9 +401,9 @@ class LifecycleFsm:
         """A composite recovering on its own commands itself what its parent would (start, run),
         once it notified the parent of the -ed state; it stops doing so in Running, Stop or Safety."""
         if leaf == 'NotifyConfigured':
-            self._memory.add(self.ev('start'))
+            self._memory.add(self.event(names.START))
         elif leaf == 'Started':
-            self._memory.add(self.ev('run'))
+            self._memory.add(self.event(names.RUN))
         elif leaf == 'Running' or state == 'Safety' or state.startswith('Active.Stop'):
             self._self_driven = False
 

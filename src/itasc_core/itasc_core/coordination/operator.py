@@ -16,6 +16,10 @@ reconfiguration; §7.2 events): the operator services every composite's Coordina
 * ``stop`` (``std_srvs/srv/Trigger``) asks for the orderly stop of the whole hierarchy: the
   request (``e_stop_requested``) travels up from Coordinator to parent Coordinator to the root's
   event topic, where the bootstrap stops the application as it does on SIGINT.
+* ``compose`` (``itasc_msgs/srv/Compose``) runs a composition step of the composite's model
+  (``e_<c>_compose_<step>``, :mod:`..composition.steps`) and answers with its result once the
+  Composer gave it (``e_<c>_composed``: what changed; ``e_<c>_compose_failed``: why nothing did).
+  Refused for a step the model does not have, and unless the composite is Running.
 
 The Coordinator stays a pure event processor: the services only raise events and look at its FSM;
 everything they start travels as events.
@@ -24,14 +28,15 @@ everything they start travels as events.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from typing import Callable, Iterable
 
 from std_srvs.srv import Trigger
 
-from itasc_msgs.srv import RaiseEvent
+from itasc_msgs.srv import Compose, RaiseEvent
 
 from ..communication.deferred_service import Later, create_deferred_service
-from ..communication.event_names import SAFETY_EVENT
+from ..communication.event_names import (CHECK_FAULTS, CONFIGURE, EMERGENCY, FAULTS_CHECKED, RECOVERING,
+                                          SAFETY_EVENT, STOP, STOP_REQUESTED, compose_step, event, owner_of)
 from ..communication.events import EventRaiser
 from ..entity import CompositeContext
 from .lifecycle import LifecycleFsm
@@ -42,17 +47,16 @@ __all__ = ['Operator', 'OPERATOR', 'STOP_REQUESTED']
 
 #: The source of the events an operator raises.
 OPERATOR = 'operator'
-#: Asks the root's owner (the bootstrap) to stop the application in order; detail: who asked.
-STOP_REQUESTED = 'e_stop_requested'
 
 
 class Operator:
     """The operator services of one Coordinator, and the fault checks before a recovery."""
 
     def __init__(self, node, *, composite: CompositeContext, fsm: LifecycleFsm, raise_own: Callable[..., None],
-                 to_parent: EventRaiser | None) -> None:
+                 to_parent: EventRaiser | None, steps: Iterable[str] = ()) -> None:
         """``raise_own(name, detail=...)`` raises as the Coordinator on its composite's topic;
-        ``to_parent`` on the parent's (None for the root)."""
+        ``to_parent`` on the parent's (None for the root); ``steps``: the composite's
+        composition steps."""
         self._node = node
         self._composite = composite
         self._name = composite.name
@@ -70,6 +74,9 @@ class Operator:
         node.create_service(RaiseEvent, '~/raise_event', self._raise_event)
         create_deferred_service(node, Trigger, '~/recover', self._recover)
         node.create_service(Trigger, '~/stop', self._stop)
+        self._composition_steps = sorted(steps)
+        self._composing: dict[str, list[Later]] = {}
+        create_deferred_service(node, Compose, '~/compose', self._compose)
 
     # -- the services ---------------------------------------------------------------------------------
 
@@ -106,7 +113,7 @@ class Operator:
                 self._awaiting_running.append(later)
                 causes = self._causes()
                 self._node.get_logger().info(f'recovering from Safety: {causes}')
-                self._raise_own(f'e_{self._name}_recovering', detail=causes)  # for the recording
+                self._raise_own(event(self._name, RECOVERING), detail=causes)  # for the recording
                 self._fsm.recover()
         self.check_faults(checked)
         return later
@@ -122,6 +129,27 @@ class Operator:
             self._to_parent.raise_event(STOP_REQUESTED, detail=detail)
         return _answer(response, True, 'stop requested: the application stops in order, from its root')
 
+    def _compose(self, request, response, later: Later):
+        step = request.step.strip()
+        if step not in self._composition_steps:
+            return _answer(response, False, f"{self._name} has no composition step '{step}' "
+                                            f'(steps: {", ".join(self._composition_steps) or "none"})')
+        state = self._fsm.state
+        if not state.startswith('Active.Run.Running'):
+            return _answer(response, False, f'{self._name} is not Running ({state}): a step changes a running '
+                                            'composite')
+        self._composing.setdefault(step, []).append(later)
+        self._operator.raise_event(compose_step(self._name, step))
+        return later
+
+    def composed(self, msg) -> None:
+        """The Composer's answer to a composition step: to whoever asked for that step."""
+        step, _, what = msg.detail.partition(':')
+        success = msg.name.endswith('_composed')
+        for later in self._composing.pop(step, []):
+            later.answer(_answer(Compose.Response(), success, what.strip() if success else
+                                 f'nothing changed: {what.strip()}'))
+
     # -- fault checks ---------------------------------------------------------------------------------
 
     def check_faults(self, then: Callable[[str], None]) -> None:
@@ -133,9 +161,9 @@ class Operator:
         self._number += 1
         children = list(self._fsm.children)
         self._check = FaultCheck(self._number, {COMPOSER, *children}, time.monotonic())
-        self._raise_own(f'e_{self._name}_check_faults', detail=check_request(self._number, self.faults.own_sources()))
+        self._raise_own(event(self._name, CHECK_FAULTS), detail=check_request(self._number, self.faults.own_sources()))
         for child in children:
-            self._raise_own(f'e_{child}_check_faults', detail=check_request(self._number, []))
+            self._raise_own(event(child, CHECK_FAULTS), detail=check_request(self._number, []))
 
     def update(self) -> None:
         check = self._check
@@ -153,7 +181,7 @@ class Operator:
 
     def accepts(self, name: str) -> bool:
         """Events on this composite's topic the operator part handles."""
-        return name == STOP_REQUESTED or name.endswith('_faults_checked')
+        return name == STOP_REQUESTED or owner_of(name, FAULTS_CHECKED) is not None
 
     def consume(self, msg) -> bool:
         """Handle an event of this composite's topic; whether it was the operator part's."""
@@ -161,9 +189,9 @@ class Operator:
             if self._to_parent is not None and msg.source != self._node.get_fully_qualified_name():
                 self._to_parent.raise_event(STOP_REQUESTED, detail=msg.detail)  # on towards the root
             return True
-        if not msg.name.endswith('_faults_checked'):
+        party = owner_of(msg.name, FAULTS_CHECKED)
+        if party is None:
             return False
-        party = msg.name.removeprefix('e_').removesuffix('_faults_checked')
         if party == self._name:
             if not msg.source.endswith('/composer'):
                 return True
@@ -177,16 +205,16 @@ class Operator:
     def consume_parent(self, msg) -> bool:
         """Handle a command of the parent; whether it was the operator part's."""
         name = msg.name
-        if name == f'e_{self._name}_check_faults':
+        if name == event(self._name, CHECK_FAULTS):
             number, _ = parse_request(msg.detail)
 
             def answer(reasons: str) -> None:
-                self._to_parent.raise_event(f'e_{self._name}_faults_checked', detail=check_answer(number, reasons))
+                self._to_parent.raise_event(event(self._name, FAULTS_CHECKED), detail=check_answer(number, reasons))
             self.check_faults(answer)
             return True
-        if name == f'e_{self._name}_emergency':
+        if name == event(self._name, EMERGENCY):
             self.parent_in_safety = True
-        elif name in (f'e_{self._name}_configure', f'e_{self._name}_stop'):
+        elif name in (event(self._name, CONFIGURE), event(self._name, STOP)):
             self.parent_in_safety = False
         return False
 

@@ -16,10 +16,13 @@ from __future__ import annotations
 
 import traceback
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 from std_msgs.msg import Float64
 
+from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENGAGED, SAFETY, SAFETY_EVENT,
+                                          SCHEDULER_ACTIVATE, SCHEDULER_ACTIVATED, SCHEDULER_INITIALIZE,
+                                          SCHEDULER_INITIALIZED, event, named)
 from ..communication.qos import DATA_QOS
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
@@ -35,7 +38,9 @@ class _Item:
     entity: FunctionalEntity | None = None
     enabled: bool = True
     #: A child composite in this process: its Scheduler, reached through its Composer.
-    child: object | None = None
+    child: Any = None
+    #: A child composite in another process: the publisher of its trigger topic.
+    trigger: Any = None
 
 
 class Scheduler(Entity):
@@ -52,17 +57,20 @@ class Scheduler(Entity):
         self.faulted = False
         c = composite.name
         self._handlers = {
-            f'e_{c}_scheduler_initialize': self._initialize,
-            f'e_{c}_scheduler_activate': self._activate,
-            f'e_{c}_disengage': self._disengage,
-            f'e_{c}_safety': self._safety,
+            event(c, SCHEDULER_INITIALIZE): self._initialize,
+            event(c, SCHEDULER_ACTIVATE): self._activate,
+            event(c, DISENGAGE): self._disengage,
+            event(c, SAFETY): self._safety,
         }
         self._events = self.listen(topics=[composite.events_topic], on_priority=self._on_event,
                                      accept=self._accepts, immediate=True)
         self._trigger_sub = None
         if remote_trigger:
             self._trigger_sub = self.create_subscription(
-                Float64, composite.trigger_topic, lambda msg: self.tick(msg.data), DATA_QOS)
+                Float64, composite.trigger_topic, self._on_trigger, DATA_QOS)
+
+    def _on_trigger(self, msg: Float64) -> None:
+        self.tick(msg.data)
 
     # -- structure, set by the Composer ------------------------------------------------------------
 
@@ -78,14 +86,26 @@ class Scheduler(Entity):
 
         def trigger(t: float) -> None:
             publisher.publish(Float64(data=t))
-        self._insert(_Item(name, trigger, enabled=enabled), None)
+        self._insert(_Item(name, trigger, enabled=enabled, trigger=publisher), None)
 
     def add_monitor(self, monitor: Monitor) -> None:
         self._monitors.append(monitor)
 
     def remove(self, name: str) -> None:
+        for item in self._items:
+            if item.name == name and item.trigger is not None:
+                self.destroy_publisher(item.trigger)
         self._items = [i for i in self._items if i.name != name]
         self._monitors = [m for m in self._monitors if m.entity_name != name]
+
+    def replace(self, entity: FunctionalEntity) -> None:
+        """Run ``entity`` in place of the entity of its name, at its place in the order, switched
+        on or off as that one was (a swap, :mod:`..composition.recompose`)."""
+        for k, item in enumerate(self._items):
+            if item.name == entity.entity_name:
+                self._items[k] = _Item(item.name, entity.update, entity, item.enabled)
+                return
+        raise KeyError(entity.entity_name)
 
     def _insert(self, item: _Item, index: int | None) -> None:
         self.remove(item.name)
@@ -98,23 +118,23 @@ class Scheduler(Entity):
     # -- events -------------------------------------------------------------------------------------
 
     def _accepts(self, name: str) -> bool:
-        return name in self._handlers or name.endswith('_activate') or name.endswith('_deactivate')
+        return name in self._handlers or name.endswith((f'_{ACTIVATE}', f'_{DEACTIVATE}'))
 
     def _on_event(self, msg) -> None:
         handler = self._handlers.get(msg.name)
         if handler is not None:
             handler()
             return
-        if msg.name == 'e_activate' and self._trigger_sub is not None:
+        if msg.name == named(ACTIVATE) and self._trigger_sub is not None:
             # This composite lives in its own process: its parent's e_<composite>_activate
             # reaches it through its Coordinator.
             self.activate_all()
             return
         for item in self._items:
-            if msg.name == f'e_{item.name}_activate' and not item.enabled:
+            if msg.name == event(item.name, ACTIVATE) and not item.enabled:
                 item.enabled = True
                 self._reactivate(item)
-            elif msg.name == f'e_{item.name}_deactivate':
+            elif msg.name == event(item.name, DEACTIVATE):
                 item.enabled = False
 
     def _reactivate(self, item: _Item) -> None:
@@ -136,18 +156,18 @@ class Scheduler(Entity):
         for entity in self._entities():
             entity.start()
         self.faulted = False
-        self.raise_event(f'e_{self.composite.name}_scheduler_initialized')
+        self.raise_event(event(self.composite.name, SCHEDULER_INITIALIZED))
 
     def _activate(self) -> None:
         self.safety = False
         self.active = not self.faulted
-        self.raise_event(f'e_{self.composite.name}_scheduler_activated')
+        self.raise_event(event(self.composite.name, SCHEDULER_ACTIVATED))
 
     def _disengage(self) -> None:
         self.active = self.safety = False
         for entity in self._entities():
             entity.disengage()
-        self.raise_event(f'e_{self.composite.name}_disengaged')
+        self.raise_event(event(self.composite.name, DISENGAGED))
 
     def _safety(self) -> None:
         self.active = False
@@ -183,7 +203,7 @@ class Scheduler(Entity):
             self.active = False
             self.faulted = True
             self.get_logger().error(f'computation failed, raising e_emergency: {err}\n{traceback.format_exc()}')
-            self.raise_event('e_emergency', priority=True, detail=f'{type(err).__name__}: {err}')
+            self.raise_event(SAFETY_EVENT, priority=True, detail=f'{type(err).__name__}: {err}')
 
     def destroy_node(self) -> None:
         self._items.clear()

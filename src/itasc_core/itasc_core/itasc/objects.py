@@ -21,11 +21,11 @@ __all__ = ['Object', 'periodic_translation']
 def periodic_translation(*, xyz: Sequence[float], rpy: Sequence[float], amplitude: Sequence[float],
                          period: float) -> Callable[[float], pin.SE3]:
     """A trajectory oscillating about ``xyz`` by ``amplitude * sin(2 pi t / period)`` per axis."""
-    centre, amplitude = np.asarray(xyz, dtype=float), np.asarray(amplitude, dtype=float)
+    centre, swing = np.asarray(xyz, dtype=float), np.asarray(amplitude, dtype=float)
     rotation = se3((0.0, 0.0, 0.0), rpy).rotation
 
     def pose(t: float) -> pin.SE3:
-        return pin.SE3(rotation, centre + amplitude * np.sin(2.0 * np.pi * t / period))
+        return pin.SE3(rotation, centre + swing * np.sin(2.0 * np.pi * t / period))
     return pose
 
 

@@ -104,6 +104,8 @@ class Robot:
         self._circle = (np.array(circle_q, dtype=int), np.array(circle_v, dtype=int))
         self._vindex = {n: i for i, n in enumerate(names)}
         self._base_nv = 0 if self.base == 'fixed' else self.model.joints[1].nv
+        # a fixed base and 1-DOF joints with q in velocity order: positions are q itself
+        self._plain = self.base == 'fixed' and not circle_q and simple_q == simple_v == list(range(self.model.nv))
 
     def _read_limits(self) -> None:
         m = self.model
@@ -142,6 +144,8 @@ class Robot:
     @property
     def positions(self) -> np.ndarray:
         """Positions per velocity coordinate, in ``joint_names`` order."""
+        if self._plain:
+            return self.q.copy()
         out = np.empty(self.nv)
         sq, sv = self._simple
         out[sv] = self.q[sq]
@@ -156,6 +160,9 @@ class Robot:
 
     def set_position_vector(self, positions: np.ndarray) -> None:
         """Set all positions from a vector per velocity coordinate (``joint_names`` order)."""
+        if self._plain:
+            self.q[:] = positions
+            return
         sq, sv = self._simple
         self.q[sq] = positions[sv]
         cq, cv = self._circle

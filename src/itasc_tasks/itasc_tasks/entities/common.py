@@ -1,25 +1,27 @@
 """What the Functional Entities of a Task composite share (paper §4.2 "Task", Fig. 2): the
 semantics of their ports and how they notice that their Task was (re)activated.
 
-The Task's entities exchange labelled tables (:mod:`itasc_core.itasc.entities.messages`) whose
-semantics name the Task, e.g. ``Output(ApproachObject)``; what leaves the Task towards the Solver
-is ``ConstraintRows`` on the program-wide joint velocities.
+The Task's entities exchange typed samples (:mod:`itasc_core.itasc.entities.messages`: features
+and outputs with their Jacobian, setpoints, control) whose semantics name the Task, e.g.
+``Output(ApproachObject)``; what leaves the Task towards the Solver is ``ConstraintRows`` on the
+program-wide joint velocities.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
-from std_msgs.msg import Float64MultiArray
+from itasc_msgs.msg import Control, Features, Setpoint
 
 from itasc_core.communication.ports import PortSpec
 
-__all__ = ['table_port', 'Ticks', 'names']
+__all__ = ['task_port', 'Ticks']
+
+#: The message of each kind of data a Task's entities exchange.
+_MESSAGES = {'Features': Features, 'Output': Features, 'Setpoint': Setpoint, 'Control': Control}
 
 
-def table_port(name: str, direction: str, kind: str, task: str) -> PortSpec:
-    """A labelled-table port of Task ``task`` carrying ``kind`` (e.g. 'Features', 'Output')."""
-    return PortSpec(name=name, direction=direction, msg_type=Float64MultiArray, type=kind.lower(),
+def task_port(name: str, direction: str, kind: str, task: str) -> PortSpec:
+    """A port of Task ``task`` carrying ``kind`` ('Features', 'Output', 'Setpoint' or 'Control')."""
+    return PortSpec(name=name, direction=direction, msg_type=_MESSAGES[kind], type=kind.lower(),
                     semantics=f'{kind}({task})')
 
 
@@ -49,7 +51,3 @@ class Ticks:
             return self.period, True
         return t - last, False
 
-
-def names(values: list[Any]) -> list[str]:
-    """A string-list parameter without its placeholder entries."""
-    return [v for v in values if v]

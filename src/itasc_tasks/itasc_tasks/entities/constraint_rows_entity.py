@@ -9,17 +9,19 @@ error and its norm; port ``state``) for Monitors, recordings and plots.
 
 from __future__ import annotations
 
-from typing import Any
+import math
 
 import numpy as np
 from itasc_msgs.msg import ConstraintRows, TaskState
+from pydantic import Field, field_validator
 
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
-from itasc_core.itasc.entities.messages import read_table, stamp
+from itasc_core.computation.parameters import ParameterModel
+from itasc_core.itasc.entities.messages import RowsSample, TaskStateSample
 from itasc_core.itasc.entities.solver_entity import ROWS_SEMANTICS
 
-from .common import table_port
+from .common import task_port
 
 __all__ = ['ConstraintRowsEntity']
 
@@ -27,50 +29,54 @@ __all__ = ['ConstraintRowsEntity']
 class ConstraintRowsEntity(FunctionalEntity):
     """The Task's constraint rows on the program-wide joint velocities, and its state."""
 
-    PARAMETERS = {'task': 'task', 'priority': 0, 'weights': [1.0], 'inequality': False}
+    class Parameters(ParameterModel):
+        task: str = 'task'
+        """The Task it belongs to."""
+        priority: int = Field(default=0, ge=0)
+        """Priority level of the Task's rows, 0 highest."""
+        weights: list[float] = Field(default_factory=lambda: [1.0], min_length=1)
+        """Weight of each row in its level: one value, or one per output (> 0)."""
+        inequality: bool = False
+        """Whether the rows are bounds (an inequality Task)."""
+
+        @field_validator('weights')
+        @classmethod
+        def _positive(cls, value: list[float]) -> list[float]:
+            if not all(w > 0 for w in value):
+                raise ValueError('weights must be > 0')
+            return value
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        task = params['task']
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        task = params.task
         return [
-            table_port('output', 'input', 'Output', task),
-            table_port('control', 'input', 'Control', task),
+            task_port('output', 'input', 'Output', task),
+            task_port('control', 'input', 'Control', task),
             PortSpec(name='rows', direction='output', msg_type=ConstraintRows, type='constraint_rows',
                      semantics=ROWS_SEMANTICS),
             PortSpec(name='state', direction='output', msg_type=TaskState, type='task_state',
                      semantics=f'TaskState({task})'),
         ]
 
-    def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        if params['priority'] < 0 or not all(w > 0 for w in params['weights']):
-            return 'priority must be >= 0 and weights > 0'
-        return None
-
-    def configure(self, params: dict[str, Any]) -> None:
-        self.task, self.priority = params['task'], params['priority']
-        self.weights = np.asarray(params['weights'], dtype=float)
-        self.inequality = params['inequality']
+    def configure(self, params: Parameters) -> None:
+        self.task, self.priority = params.task, params.priority
+        self.weights = np.asarray(params.weights, dtype=float)
+        self.inequality = params.inequality
+        self._row_weights = self.weights  # one per row, remade when the number of rows changes
 
     def update(self, t: float) -> None:
-        output_msg, control_msg = self.inputs['output'].latest, self.inputs['control'].latest
-        if output_msg is None or control_msg is None:
+        output, control = self.inputs['output'].latest, self.inputs['control'].latest
+        if output is None or control is None:
             return
-        output, control = read_table(output_msg), read_table(control_msg)
-        if control.rows != output.rows:
+        if control.names != output.names:
             return  # the controller has not seen these outputs yet
-        m = len(output.rows)
-        rows = ConstraintRows(task=self.task, priority=self.priority, inequality=self.inequality, rows=m,
-                              joint_names=list(output.columns[1:]))
-        rows.stamp = stamp(t)
-        rows.jacobian = output.matrix().reshape(-1).tolist()
-        rows.desired = control.column('desired').tolist()
-        rows.lower = control.column('lower').tolist()
-        rows.upper = control.column('upper').tolist()
-        rows.weights = np.broadcast_to(self.weights, (m,)).tolist()
-        self.outputs['rows'].write(rows)
-        error = control.column('error')
-        state = TaskState(task=self.task, output=output.column('value').tolist(),
-                          setpoint=control.column('setpoint').tolist(), error=error.tolist(),
-                          error_norm=float(np.linalg.norm(error)), active=True)
-        state.stamp = stamp(t)
-        self.outputs['state'].write(state)
+        m = len(output.names)
+        if self._row_weights.shape != (m,):
+            self._row_weights = np.broadcast_to(self.weights, (m,)).copy()
+        self.outputs['rows'].write(RowsSample(
+            t, self.task, priority=self.priority, inequality=self.inequality, joint_names=output.joint_names,
+            jacobian=output.jacobian, desired=control.desired, lower=control.lower, upper=control.upper,
+            weights=self._row_weights))
+        error = control.error
+        self.outputs['state'].write(TaskStateSample(t, self.task, output=output.value, setpoint=control.setpoint,
+                                                    error=error, error_norm=math.sqrt(float(error @ error))))

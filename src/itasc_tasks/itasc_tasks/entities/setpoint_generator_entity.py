@@ -1,112 +1,154 @@
 """SetpointGeneratorEntity: the Setpoint Generator of a Task (paper §4.1, §4.2, Fig. 2).
 
-Wraps :mod:`itasc_tasks.setpoint_generator`. ``kind``:
+Calls :mod:`itasc_tasks.setpoint_generator`. Its parameters are a Task's ``setpoint`` section
+(:class:`Setpoint`, the same model) and the Task's outputs. ``kind``:
 
 * ``hold``: hold the output where it was when the Task became active;
-* ``fixed``: a constant ``target``;
+* ``fixed``: a constant target (``value`` or ``pose``);
 * ``minimum_jerk`` / ``trapezoidal``: a smooth point-to-point motion from the current output to
-  ``target`` (``duration``, ``max_velocity``, ``max_acceleration``);
+  the target (``duration``, ``max_velocity``, ``max_acceleration``);
 * ``periodic``: ``offset + amplitude sin(2 pi t / period + phase)``;
 * ``topic``: values (in output space) received on the ROS topic ``topic``
   (``std_msgs/Float64MultiArray``); holds the current output until the first one arrives; a
   value that is not finite or not one per output raises ``e_emergency`` (Safety).
 
-``target`` is in output space, or, with ``target_is_pose``, the pose ``[x, y, z, roll, pitch,
-yaw]`` of o2 in o1 (a Cartesian Task; interpolated along the geodesic). A point-to-point motion
+The target is ``value`` in output space, or ``pose``, the pose of o2 in o1 (a Cartesian Task;
+interpolated along the geodesic). A point-to-point motion
 restarts from the current output whenever the Task is (re)activated or the parameters change
 (a configuration may switch the target). Input ``features`` (``Features(<task>)``) gives the
-current value; outputs ``setpoint`` (labelled table: columns ``value`` and ``velocity``, the
-feed-forward) and ``progress`` (``std_msgs/Float64``: share of the motion done, 1 when the target
+current value; outputs ``setpoint`` (``itasc_msgs/Setpoint``: ``value`` and ``velocity``, the
+feed-forward, per output) and ``progress`` (``std_msgs/Float64``: share of the motion done, 1 when the target
 is reached; Monitors watch it to tell the Coordinator that a motion is over).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Literal
 
 import numpy as np
-import pinocchio as pin
+from pydantic import Field, field_validator, model_validator
 from std_msgs.msg import Float64, Float64MultiArray
 
+from itasc_core.communication.event_names import SAFETY_EVENT
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
+from itasc_core.computation.parameters import ParameterModel
 from itasc_core.communication.qos import DATA_QOS
-from itasc_core.itasc.entities.messages import Table, read_table, table_msg
+from itasc_core.communication.samples import Float64Sample
+from itasc_core.itasc.entities.messages import FeaturesSample, SetpointSample
+from itasc_core.itasc.entities.scene_entity import Placement
 from itasc_core.itasc.robot import se3
 
-from ..setpoint_generator import (FixedSetpoint, MinimumJerkSetpoint, PeriodicSetpoint, TopicSetpoint,
-                                  TrapezoidalSetpoint)
-from .common import Ticks, names, table_port
+from ..constraint_output import ConstraintOutput, Selection
+from ..setpoint_generator import (FixedSetpoint, HoldSetpoint, MinimumJerkSetpoint, OutputSetpoint,
+                                  PeriodicSetpoint, PointToPoint, SetpointGenerator, TopicSetpoint,
+                                  TrapezoidalSetpoint, start_value)
+from .common import Ticks, task_port
 
-__all__ = ['SetpointGeneratorEntity']
+__all__ = ['SetpointGeneratorEntity', 'Setpoint']
 
-KINDS = ('hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic')
-_POINT_TO_POINT = (MinimumJerkSetpoint, TrapezoidalSetpoint)
+
+def _as_list(value: Any) -> Any:
+    """Accept a scalar where a list is expected (``value: 0.3``)."""
+    return [value] if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+
+
+class Setpoint(ParameterModel):
+    """A Setpoint Generator (paper §4.1). ``value`` is in output space; a Cartesian Task may give a
+    ``pose`` of o2 in o1 instead. ``hold`` keeps the output where the Task found it."""
+
+    kind: Literal['hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic']
+    """How the setpoint moves: ``hold`` where the Task found it, ``fixed``, ``minimum_jerk`` or
+    ``trapezoidal`` towards ``value``/``pose``, ``periodic`` (a sine), or read from a ``topic``."""
+    value: list[float] | None = None
+    """The target in output space, one number per output [m, rad or the output's unit]."""
+    pose: Placement | None = None
+    """A Cartesian Task's target: the pose of o2 in o1."""
+    duration: float = Field(default=0.0, ge=0)
+    """Time to reach the target [s] (``minimum_jerk``; 0: at once)."""
+    max_velocity: list[float] | None = None
+    """Per output [unit/s] (``trapezoidal``)."""
+    max_acceleration: list[float] | None = None
+    """Per output [unit/s²] (``trapezoidal``)."""
+    amplitude: list[float] | None = None
+    """Per output (``periodic``)."""
+    period: float | None = Field(default=None, gt=0)
+    """Period [s] (``periodic``)."""
+    offset: list[float] | None = None
+    """Centre per output (``periodic``; omitted: 0)."""
+    phase: list[float] | None = None
+    """Phase per output [rad] (``periodic``)."""
+    topic: str | None = None
+    """Topic of ``std_msgs/Float64MultiArray`` setpoints, one value per output (``topic``)."""
+
+    _list = field_validator('value', 'max_velocity', 'max_acceleration', 'amplitude', 'offset', 'phase',
+                            mode='before')(_as_list)
+
+    @field_validator('max_velocity', 'max_acceleration')
+    @classmethod
+    def _positive(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and any(v <= 0 for v in value):
+            raise ValueError('must be > 0')
+        return value
+
+    @model_validator(mode='after')
+    def _complete(self) -> 'Setpoint':
+        if self.kind in ('fixed', 'minimum_jerk', 'trapezoidal') and (self.value is None) == (self.pose is None):
+            raise ValueError(f"setpoint '{self.kind}' needs exactly one of value or pose")
+        if self.kind == 'periodic' and (self.amplitude is None or self.period is None):
+            raise ValueError("setpoint 'periodic' needs amplitude and period")
+        if self.kind == 'topic' and not self.topic:
+            raise ValueError("setpoint 'topic' needs a topic")
+        return self
 
 
 class SetpointGeneratorEntity(FunctionalEntity):
     """Desired values y_d (and their velocity) for the Task's controller."""
 
-    PARAMETERS = {
-        'task': 'task',
-        'tick_period': 0.01,      # the program's nominal tick period [s]
-        'kind': 'hold',
-        'outputs': [''],            # the Task's outputs, as the Constraint Output selects them
-        'target': [0.0],
-        'target_is_pose': False,
-        'duration': 0.0,
-        'max_velocity': [0.0],      # 0: unbounded
-        'max_acceleration': [1.0],
-        'amplitude': [0.0],
-        'period': 1.0,
-        'offset': [0.0],
-        'phase': [0.0],
-        'topic': '',
-    }
+    class Parameters(Setpoint):
+        kind: Literal['hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic'] = 'hold'
+        """How the setpoint moves (see :class:`Setpoint`)."""
+        task: str = 'task'
+        """The Task it belongs to."""
+        tick_period: float = Field(default=0.01, gt=0)
+        """The program's nominal tick period [s]."""
+        outputs: list[str] = Field(default_factory=list)
+        """The Task's outputs, as its Constraint Output selects them (none: all features)."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
         return [
-            table_port('features', 'input', 'Features', params['task']),
-            table_port('setpoint', 'output', 'Setpoint', params['task']),
+            task_port('features', 'input', 'Features', params.task),
+            task_port('setpoint', 'output', 'Setpoint', params.task),
             PortSpec(name='progress', direction='output', msg_type=Float64, type='progress',
-                     semantics=f"Progress({params['task']})"),
+                     semantics=f'Progress({params.task})'),
         ]
 
-    def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        if params['kind'] not in KINDS:
-            return f"kind must be one of {KINDS}, got {params['kind']!r}"
-        if params['target_is_pose'] and len(params['target']) != 6:
-            return 'a pose target is [x, y, z, roll, pitch, yaw]'
-        if params['duration'] < 0 or params['period'] <= 0:
-            return 'duration >= 0 and period > 0 expected'
-        if params['kind'] == 'topic' and not params['topic']:
-            return "kind 'topic' needs a topic"
-        return None
-
-    def configure(self, params: dict[str, Any]) -> None:
-        self.outputs_selected = names(params['outputs'])
-        self.kind = params['kind']
-        target: Any = np.array(params['target'], dtype=float)
-        if params['target_is_pose']:
-            target = se3(target[:3], target[3:])
-        max_velocity = [v if v > 0 else np.inf for v in params['max_velocity']]
-        max_velocity = None if all(np.isinf(max_velocity)) else max_velocity
-        self.generator = {
-            'hold': lambda: None,
+    def configure(self, params: Parameters) -> None:
+        self.co = ConstraintOutput(list(params.outputs) or None)
+        self._output_setpoint = OutputSetpoint()
+        self.kind = params.kind
+        target: Any = se3(params.pose.xyz, params.pose.rpy) if params.pose is not None \
+            else np.array(params.value or [0.0], dtype=float)
+        max_velocity = params.max_velocity
+        self.topic = params.topic or ''
+        generators: dict[str, Callable[[], SetpointGenerator]] = {
+            'hold': HoldSetpoint,
             'fixed': lambda: FixedSetpoint(target),
-            'minimum_jerk': lambda: MinimumJerkSetpoint(target, duration=params['duration'],
+            'minimum_jerk': lambda: MinimumJerkSetpoint(target, duration=params.duration,
                                                         max_velocity=max_velocity),
             'trapezoidal': lambda: TrapezoidalSetpoint(
-                target, duration=params['duration'], max_velocity=max_velocity or np.inf,
-                max_acceleration=params['max_acceleration']),
-            'periodic': lambda: PeriodicSetpoint(amplitude=params['amplitude'], period=params['period'],
-                                                 offset=params['offset'], phase=params['phase']),
-            'topic': lambda: TopicSetpoint(),
-        }[self.kind]()
-        self._subscribe(params['topic'] if self.kind == 'topic' else '')
-        self._ticks = getattr(self, '_ticks', None) or Ticks(params['tick_period'])
-        self._ticks.period = params['tick_period']
+                target, duration=params.duration, max_velocity=max_velocity or np.inf,
+                max_acceleration=params.max_acceleration or 1.0),
+            'periodic': lambda: PeriodicSetpoint(amplitude=params.amplitude or 0.0, period=params.period or 1.0,
+                                                 offset=params.offset or 0.0, phase=params.phase or 0.0),
+            'topic': TopicSetpoint,
+        }
+        self.generator = generators[self.kind]()
+        self._subscribe(self.topic if self.kind == 'topic' else '')
+        self._ticks = getattr(self, '_ticks', None) or Ticks(params.tick_period)
+        self._ticks.period = params.tick_period
         self._restart = True
         self._t0 = 0.0
 
@@ -132,52 +174,35 @@ class SetpointGeneratorEntity(FunctionalEntity):
         self._ticks.restart()
 
     def update(self, t: float) -> None:
-        msg = self.inputs['features'].latest
-        if msg is None:
+        features = self.inputs['features'].latest
+        if features is None:
             return
-        table = read_table(msg)
-        index = [table.rows.index(n) for n in self.outputs_selected] if self.outputs_selected \
-            else list(range(len(table.rows)))
+        selection = self.co.bind(features.names, features.rotation)
         _, resumed = self._ticks.step(t)
         if resumed or self._restart:
-            self._start(table, index, t)
+            self._start(features, selection, t)
         value, velocity = self.generator(t)
-        if isinstance(value, pin.SE3):
-            value = _features_of(value, table)[index]
-            velocity = np.asarray(velocity)[index]
-        if self.kind == 'topic' and (np.shape(value) != (len(index),) or not np.isfinite(value).all()):
-            self.raise_event('e_emergency', priority=True,
-                             detail=f"{self.params['topic']}: setpoint {np.asarray(value).tolist()} is not "
-                                    f"{len(index)} finite values")
+        value, velocity = self._output_setpoint(value, velocity, selection=selection, rotation=features.rotation)
+        names = selection.names
+        if self.kind == 'topic' and (np.shape(value) != (len(names),) or not np.isfinite(value).all()):
+            self.raise_event(SAFETY_EVENT, priority=True,
+                             detail=f"{self.topic}: setpoint {np.asarray(value).tolist()} is not "
+                                    f"{len(names)} finite values")
             return
-        rows = [table.rows[i] for i in index]
-        self.outputs['setpoint'].write(table_msg(rows, ('value', 'velocity'), np.column_stack([value, velocity])))
-        self.outputs['progress'].write(Float64(data=self._progress(t)))
+        value, velocity = np.asarray(value, dtype=float), np.asarray(velocity, dtype=float)
+        if velocity.shape != value.shape:
+            velocity = np.full(value.shape, velocity)
+        self.outputs['setpoint'].write(SetpointSample(t, names, value, velocity))
+        self.outputs['progress'].write(Float64Sample(self._progress(t)))
 
-    def _start(self, table: Table, index: list[int], t: float) -> None:
+    def _start(self, features: FeaturesSample, selection: Selection, t: float) -> None:
+        """Start the generator from where the Task is (a topic's only until its first value)."""
         self._restart, self._t0 = False, t
-        current = table.column('value')
-        if self.kind == 'hold':
-            self.generator = FixedSetpoint(current[index])
-        elif isinstance(self.generator, _POINT_TO_POINT):
-            pose_target = isinstance(self.generator.target, pin.SE3)
-            self.generator.start(_pose_of(current, table) if pose_target else current[index], t)
-        elif isinstance(self.generator, TopicSetpoint) and not self.generator.started:
-            self.generator.start(current[index], t)
+        if isinstance(self.generator, TopicSetpoint) and self.generator.started:
+            return
+        self.generator.start(start_value(self.generator, features=features.value,
+                                         output=selection.select(features.value), rotation=features.rotation), t)
 
     def _progress(self, t: float) -> float:
-        period = getattr(self.generator, 'period', 0.0) if isinstance(self.generator, _POINT_TO_POINT) else 0.0
+        period = self.generator.period if isinstance(self.generator, PointToPoint) else 0.0
         return 1.0 if period <= 0.0 else float(min(max((t - self._t0) / period, 0.0), 1.0))
-
-
-def _features_of(pose: pin.SE3, table: Table) -> np.ndarray:
-    """Feature coordinates of a relative pose, in the coordinates of the features table."""
-    if table.rotation is not None:
-        return np.concatenate([pose.translation, pin.log3(pose.rotation)])
-    return pin.log6(pose).vector
-
-
-def _pose_of(features: np.ndarray, table: Table) -> pin.SE3:
-    if table.rotation is not None:
-        return pin.SE3(pin.exp3(features[3:6]), features[0:3].copy())
-    return pin.exp6(pin.Motion(features[:6]))

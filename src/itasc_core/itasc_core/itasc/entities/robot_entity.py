@@ -11,15 +11,17 @@ computed once per tick by the Scene, which owns the world model.
 
 from __future__ import annotations
 
-import math
-from typing import Any
+from typing import Literal
 
+import numpy as np
 from sensor_msgs.msg import JointState
 
+from ...communication.event_names import JOINTS_MISSING, SAFETY_EVENT, event
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
+from ...computation.parameters import ParameterModel
 from ..robot import Robot
-from .messages import stamp
+from .messages import JointSample
 
 __all__ = ['RobotEntity', 'joint_positions']
 
@@ -32,11 +34,17 @@ def joint_positions(robot: str) -> str:
 class RobotEntity(FunctionalEntity):
     """Measured joint state of one robot, by name, in model order."""
 
-    PARAMETERS = {'robot': 'robot', 'urdf': '', 'base': 'fixed'}
+    class Parameters(ParameterModel):
+        robot: str = 'robot'
+        """The robot's name."""
+        urdf: str = ''
+        """Its URDF file (absolute path)."""
+        base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+        """Its base: fixed, or a mobile base's joints."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        semantics = joint_positions(params['robot'])
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        semantics = joint_positions(params.robot)
         return [
             PortSpec(name='measured', direction='input', msg_type=JointState, type='joint_state',
                      semantics=semantics),
@@ -44,34 +52,43 @@ class RobotEntity(FunctionalEntity):
                      semantics=semantics),
         ]
 
-    def configure(self, params: dict[str, Any]) -> None:
-        self.robot = Robot(params['robot'], params['urdf'], base=params['base'])
-        self.joint_names = list(self.robot.joint_names)
+    def configure(self, params: Parameters) -> None:
+        self.robot = Robot(params.robot, params.urdf, base=params.base)
+        self.joint_names = tuple(self.robot.joint_names)
         self._missing_reported = False
+        self._order: tuple[tuple[str, ...], np.ndarray | None] = ((), None)  # measured names -> model order
+
+    def _index(self, names: tuple[str, ...]) -> np.ndarray | None:
+        """Where each joint of the model is in ``names`` (None if one is missing), cached while the
+        driver keeps its order."""
+        if self._order[0] != names:
+            where = {n: i for i, n in enumerate(names)}
+            found = [where.get(n) for n in self.joint_names]
+            self._order = (names, None if None in found else np.array(found, dtype=int))
+        return self._order[1]
 
     def update(self, t: float) -> None:
         msg = self.inputs['measured'].latest
         if msg is None:
             return
-        by_name = dict(zip(msg.name, msg.position))
-        missing = [n for n in self.joint_names if n not in by_name]
-        if missing:
+        index = self._index(msg.name)
+        if index is None or len(msg.position) != len(msg.name):
             if not self._missing_reported:
                 self._missing_reported = True
-                self.raise_event(f'e_{self.robot.name}_joints_missing', detail=', '.join(missing))
+                present = set(msg.name[:len(msg.position)])
+                self.raise_event(event(self.robot.name, JOINTS_MISSING),
+                                 detail=', '.join(n for n in self.joint_names if n not in present))
             return
-        positions = [float(by_name[n]) for n in self.joint_names]
-        if not all(math.isfinite(p) for p in positions):
-            self.raise_event('e_emergency', priority=True,
+        positions = msg.position[index]
+        if not np.isfinite(positions).all():
+            self.raise_event(SAFETY_EVENT, priority=True,
                              detail=f'{self.robot.name}: non-finite joint positions')
             return
-        out = JointState(name=self.joint_names, position=positions)
-        out.header.stamp = stamp(t)
-        self.outputs['joint_state'].write(out)
+        self.outputs['joint_state'].write(JointSample(t, self.joint_names, positions))
 
     def fault_persists(self) -> str | None:
         """Before a recovery from Safety: are the latest measured joint positions still not finite?"""
         msg = self.inputs['measured'].latest
         by_name = dict(zip(msg.name, msg.position)) if msg is not None else {}
-        bad = [n for n in self.joint_names if n in by_name and not math.isfinite(by_name[n])]
+        bad = [n for n in self.joint_names if n in by_name and not np.isfinite(by_name[n])]
         return f'{self.robot.name}: non-finite joint positions {bad}' if bad else None

@@ -9,45 +9,43 @@ from its input ports, computes forward kinematics once, and writes on its output
 
 * ``joint_state``: the program-wide joint positions (``sensor_msgs/JointState``, Scene order);
 * ``relation_<name>``: per relation, the pose of o2 relative to o1 expressed in o1 as
-  ``[p; log3(R)]`` with its Jacobian on the program-wide joint velocities (a labelled table,
-  see :mod:`.messages`), geometric semantics ``Relation(o2|o1)@o1``.
+  ``[p; log3(R)]`` (names x y z rx ry rz) with its Jacobian on the program-wide joint velocities
+  (``itasc_msgs/Features``, see :mod:`.messages`), geometric semantics ``Relation(o2|o1)@o1``.
 
 A measured pose that is not finite or whose quaternion is zero raises ``e_emergency`` (Safety) and
 nothing is written that tick; any other quaternion is normalised.
 
-Parameters are lists of YAML flow mappings (ROS parameters hold no nested structures), e.g.::
-
-    robots:    ['{name: panda, urdf: /abs/panda.urdf, base: fixed, xyz: [0, 0, 0],
-                 frames: {tcp: {link: panda_hand_tcp}}}']
-    objects:   ['{name: target, xyz: [0.5, 0, 0.2], frames: {grasp: {rpy: [3.14159, 0, 0]}},
-                 sensed: false}']
-    relations: ['{name: ApproachObject, o1: target/grasp, o2: panda/tcp}']
+Its parameters are typed (:class:`SceneEntity.Parameters`): robots, objects and relations by name,
+declared as ROS parameters ``robots.<robot>.urdf``, ``objects.<object>.frames.<frame>.xyz``,
+``relations.<Task>.o1``, ...
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Literal
 
 import numpy as np
 import pinocchio as pin
-import yaml
 from geometry_msgs.msg import PoseStamped
+from itasc_msgs.msg import Features
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from pydantic import Field
 
+from ...communication.event_names import SAFETY_EVENT
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
+from ...computation.parameters import ParameterModel
+from ..coordinates import POSE_FEATURES, pose_features
 from ..objects import Object, periodic_translation
 from ..robot import Robot
 from ..scene import Scene
-from .messages import stamp, table_msg
+from .messages import FeaturesSample, JointSample
 from .robot_entity import joint_positions
 
-__all__ = ['SceneEntity', 'PROGRAM_JOINTS', 'relation_semantics', 'object_pose', 'entries']
+__all__ = ['SceneEntity', 'PROGRAM_JOINTS', 'relation_semantics', 'object_pose', 'Placement', 'ObjectMotion']
 
 #: Semantics of the program-wide joint position vector.
 PROGRAM_JOINTS = 'JointPositions(program)'
-FEATURES = ('x', 'y', 'z', 'rx', 'ry', 'rz')
 
 
 def relation_semantics(o1: str, o2: str) -> str:
@@ -58,82 +56,144 @@ def object_pose(obj: str) -> str:
     return f'Pose({obj}|world)@world'
 
 
-def entries(values: list[str]) -> list[dict[str, Any]]:
-    """Decode a list-of-YAML-flow-mappings parameter (empty strings are placeholders)."""
-    return [yaml.safe_load(v) for v in values if v]
+Vec3 = tuple[float, float, float]
+
+
+class Placement(ParameterModel):
+    """A pose: translation [m] and roll-pitch-yaw [rad] (URDF convention)."""
+
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    """Translation [m]."""
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+    """Roll, pitch, yaw [rad] (URDF convention)."""
+
+
+class ObjectMotion(ParameterModel):
+    """A moving object's trajectory: oscillating about its placement, per axis."""
+
+    amplitude: Vec3
+    """Amplitude per axis x, y, z [m]."""
+    period: float = Field(gt=0)
+    """Period of the oscillation [s]."""
+
+
+class LinkFrame(Placement):
+    """An object frame on a robot link, offset from the link."""
+
+    link: str = Field(min_length=1)
+    """The URDF link it is fixed to."""
+
+
+class SceneRobot(Placement):
+    """A robot of the Scene, placed in the world."""
+
+    urdf: str = Field(min_length=1)
+    """Its URDF file (absolute path)."""
+    base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+    """Its base: fixed, or a mobile base's joints."""
+    frames: dict[str, LinkFrame] = Field(default_factory=dict)
+    """Its object frames by name."""
+
+
+class SceneObject(Placement):
+    """An object of the Scene, at its placement or moving."""
+
+    frames: dict[str, Placement] = Field(default_factory=dict)
+    """Its frames by name, relative to it."""
+    sensed: bool = False
+    """Whether a Sensor measures its pose (input ``pose_<object>``)."""
+    motion: ObjectMotion | None = None
+    """A known motion about the placement."""
+
+
+class Relation(ParameterModel):
+    """A pair of object frames a Task is defined between."""
+
+    o1: str = Field(min_length=1)
+    """The first frame (``robot/frame``, ``object/frame``, ``object`` or ``world``)."""
+    o2: str = Field(min_length=1)
+    """The second frame."""
 
 
 class SceneEntity(FunctionalEntity):
     """Robots and objects in one world; relative poses and Jacobians between object frames."""
 
-    PARAMETERS = {'robots': [''], 'objects': [''], 'relations': ['']}
+    class Parameters(ParameterModel):
+        robots: dict[str, SceneRobot] = Field(default_factory=dict)
+        """The robots by name, in the order of the program's joints."""
+        objects: dict[str, SceneObject] = Field(default_factory=dict)
+        """The objects by name."""
+        relations: dict[str, Relation] = Field(default_factory=dict)
+        """The relations between object frames, by the name of the Task they serve."""
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
-        specs = [PortSpec(name=f"joint_state_{r['name']}", direction='input', msg_type=JointState,
-                          type='joint_state', semantics=joint_positions(r['name']))
-                 for r in entries(params['robots'])]
-        specs += [PortSpec(name=f"pose_{o['name']}", direction='input', msg_type=PoseStamped,
-                           type='pose', semantics=object_pose(o['name']))
-                  for o in entries(params['objects']) if o.get('sensed')]
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+        specs = [PortSpec(name=f'joint_state_{name}', direction='input', msg_type=JointState,
+                          type='joint_state', semantics=joint_positions(name)) for name in params.robots]
+        specs += [PortSpec(name=f'pose_{name}', direction='input', msg_type=PoseStamped,
+                           type='pose', semantics=object_pose(name))
+                  for name, o in params.objects.items() if o.sensed]
         specs.append(PortSpec(name='joint_state', direction='output', msg_type=JointState,
                               type='joint_state', semantics=PROGRAM_JOINTS))
-        specs += [PortSpec(name=f"relation_{r['name']}", direction='output', msg_type=Float64MultiArray,
-                           type='relation', semantics=relation_semantics(r['o1'], r['o2']))
-                  for r in entries(params['relations'])]
+        specs += [PortSpec(name=f'relation_{name}', direction='output', msg_type=Features,
+                           type='relation', semantics=relation_semantics(r.o1, r.o2))
+                  for name, r in params.relations.items()]
         return specs
 
-    def configure(self, params: dict[str, Any]) -> None:
+    def configure(self, params: Parameters) -> None:
         scene = Scene()
-        for r in entries(params['robots']):
-            robot = Robot(r['name'], r['urdf'], base=r.get('base', 'fixed'),
-                          xyz=r.get('xyz', (0, 0, 0)), rpy=r.get('rpy', (0, 0, 0)))
-            for frame, spec in (r.get('frames') or {}).items():
-                robot.add_frame(frame, spec['link'], xyz=spec.get('xyz', (0, 0, 0)),
-                                rpy=spec.get('rpy', (0, 0, 0)))
+        for name, r in params.robots.items():
+            robot = Robot(name, r.urdf, base=r.base, xyz=r.xyz, rpy=r.rpy)
+            for frame, spec in r.frames.items():
+                robot.add_frame(frame, spec.link, xyz=spec.xyz, rpy=spec.rpy)
             scene.add_robot(robot)
         self.sensed: list[str] = []
-        for o in entries(params['objects']):
-            xyz, rpy, motion = o.get('xyz', (0, 0, 0)), o.get('rpy', (0, 0, 0)), o.get('motion')
-            trajectory = None if motion is None else periodic_translation(
-                xyz=xyz, rpy=rpy, amplitude=motion['amplitude'], period=motion['period'])
-            obj = Object(o['name'], xyz=xyz, rpy=rpy, trajectory=trajectory)
-            for frame, spec in (o.get('frames') or {}).items():
-                obj.add_frame(frame, xyz=spec.get('xyz', (0, 0, 0)), rpy=spec.get('rpy', (0, 0, 0)))
+        for name, o in params.objects.items():
+            trajectory = None if o.motion is None else periodic_translation(
+                xyz=o.xyz, rpy=o.rpy, amplitude=o.motion.amplitude, period=o.motion.period)
+            obj = Object(name, xyz=o.xyz, rpy=o.rpy, trajectory=trajectory)
+            for frame, placement in o.frames.items():
+                obj.add_frame(frame, xyz=placement.xyz, rpy=placement.rpy)
             scene.add_object(obj)
-            if o.get('sensed'):
-                self.sensed.append(o['name'])
-        self.relations = [(r['name'], r['o1'], r['o2']) for r in entries(params['relations'])]
+            if o.sensed:
+                self.sensed.append(name)
+        self.relations = [(name, r.o1, r.o2) for name, r in params.relations.items()]
         for _, o1, o2 in self.relations:  # unknown frames fail at configuration, not while running
             scene.frame(o1), scene.frame(o2)
         self.scene = scene
-        self._columns = ('value', *scene.joint_names)
+        self._joint_names = tuple(scene.joint_names)
+        self._robots = [(self.inputs[f'joint_state_{name}'], robot, tuple(robot.joint_names))
+                        for name, robot in scene.robots.items()]
+        self._relations = [(self.outputs[f'relation_{name}'], o1, o2) for name, o1, o2 in self.relations]
 
     def update(self, t: float) -> None:
-        states = [self.inputs[f'joint_state_{name}'].latest for name in self.scene.robots]
-        if any(s is None for s in states):
-            return  # the world is not known before every robot has reported its joints
-        for state in states:
-            self.scene.set_positions(state.name, state.position)
+        for port, _, _ in self._robots:
+            if port.latest is None:
+                return  # the world is not known before every robot has reported its joints
+        for port, robot, joints in self._robots:
+            state = port.latest
+            if state.name == joints:  # the Robot entity's order: no lookup by name
+                robot.set_position_vector(state.position)
+            else:
+                robot.set_positions(state.name, state.position)
         for name in self.sensed:
             msg = self.inputs[f'pose_{name}'].latest
             if msg is None:
                 continue
             pose = _se3(msg.pose)
             if pose is None:  # a broken measurement is not a place to move to
-                self.raise_event('e_emergency', priority=True,
+                self.raise_event(SAFETY_EVENT, priority=True,
                                  detail=f'{name}: measured pose not finite or its quaternion zero')
                 return
             self.scene.objects[name].set_pose(pose)
-        self.scene.update(t)
-        out = JointState(name=list(self.scene.joint_names), position=self.scene.q.tolist())
-        out.header.stamp = stamp(t)
-        self.outputs['joint_state'].write(out)
-        for name, o1, o2 in self.relations:
-            pose = self.scene.relative_pose(o1, o2)
-            values = np.column_stack([np.concatenate([pose.translation, pin.log3(pose.rotation)]),
-                                      self.scene.relative_jacobian(o1, o2)])
-            self.outputs[f'relation_{name}'].write(table_msg(FEATURES, self._columns, values, rotation=3))
+        scene = self.scene
+        scene.update(t)
+        joints = self._joint_names
+        self.outputs['joint_state'].write(JointSample(t, joints, scene.q.copy()))
+        for output, o1, o2 in self._relations:
+            pose = scene.relative_pose(o1, o2)
+            output.write(FeaturesSample(t, POSE_FEATURES, joints, pose_features(pose, coordinates='xyz_log3'),
+                                        scene.relative_jacobian(o1, o2), rotation=3, pose=pose))
 
     def fault_persists(self) -> str | None:
         """Before a recovery from Safety: is a sensed pose still not finite (or its quaternion zero)?"""

@@ -1,8 +1,8 @@
 """SolverEntity: the Solver of a constraint-based program (paper §4.1 "Solver", §2.2).
 
 Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/ConstraintRows``
-sample per connected Task; only rows of the current tick count, so a Task the Coordinator
-deactivated drops out at once), solves the prioritised problem with the configured solver
+sample per connected Task, :class:`.messages.RowsSample`; only rows of the current tick count, so
+a Task the Coordinator deactivated drops out at once), solves the prioritised problem with the configured solver
 (``wdls``: weighted damped least squares with null-space priorities; ``qp``: cascade of QPs with
 inequalities through qpsolvers) within the joint position and velocity limits, and writes
 
@@ -21,23 +21,45 @@ contradict each other, a QP backend that fails), it commands zero velocity and r
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Literal
 
 import numpy as np
 from itasc_msgs.msg import ConstraintRows as RowsMsg
 from itasc_msgs.msg import SolverStatus
+from pydantic import Field, model_validator
 from sensor_msgs.msg import JointState
 
+from ...communication.event_names import SAFETY_EVENT, solver_status
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
+from ...computation.parameters import ParameterModel
 from ..solver import ConstraintRows, QpSolver, WdlsSolver
-from .messages import seconds, stamp
+from .messages import JointSample, RowsSample, SolverStatusSample
 from .scene_entity import PROGRAM_JOINTS
 
-__all__ = ['SolverEntity', 'PROGRAM_VELOCITIES', 'ROWS_SEMANTICS']
+__all__ = ['SolverEntity', 'SolverSettings', 'PROGRAM_VELOCITIES', 'ROWS_SEMANTICS']
 
 PROGRAM_VELOCITIES = 'JointVelocities(program)'
 ROWS_SEMANTICS = f'ConstraintRows({PROGRAM_VELOCITIES})'
+
+
+class SolverSettings(ParameterModel):
+    """How the Solver solves: ``wdls`` (weighted damped least squares, priorities by null-space
+    projection; ``damping`` the largest damping near singularities) or ``qp`` (a cascade of QPs with
+    inequalities; ``backend`` any qpsolvers solver; ``regularization`` the weight of the
+    joint-velocity norm)."""
+
+    kind: Literal['wdls', 'qp'] = 'wdls'
+    """``wdls``: weighted damped least squares, priorities by null-space projection; ``qp``: a cascade
+    of quadratic programs, inequalities included."""
+    backend: str = 'daqp'
+    """The QP solver (``qp``): any solver ``qpsolvers`` has installed."""
+    damping: float = Field(default=0.1, ge=0)
+    """Largest damping near singularities (``wdls``) [rad/s]."""
+    regularization: float = Field(default=1e-6, gt=0)
+    """Weight of the joint-velocity norm (``qp``)."""
+    position_limit_gain: float = Field(default=0.5, gt=0, le=1)
+    """Fraction of the distance to a joint's position limit it may close in one second (0 < gain ≤ 1)."""
 
 
 class NonFinite(ValueError):
@@ -51,22 +73,32 @@ class Infeasible(ValueError):
 class SolverEntity(FunctionalEntity):
     """Joint velocities from the constraint rows of all active Tasks."""
 
-    PARAMETERS = {
-        'kind': 'wdls',            # wdls | qp
-        'backend': 'daqp',         # qp: any qpsolvers backend
-        'joint_names': [''],       # the program's joints (Scene order)
-        'lower': [-math.inf],      # position limits per joint
-        'upper': [math.inf],
-        'velocity_limit': [math.inf],
-        'joint_weights': [1.0],    # one value, or one per joint
-        'damping': 0.1,            # wdls: maximum damping near singularities
-        'regularization': 1e-6,    # qp: weight of the joint-velocity norm
-        'position_limit_gain': 0.5,
-        'period': 0.01,            # the nominal tick period, used until two ticks were seen
-    }
+    class Parameters(SolverSettings):
+        joint_names: list[str] = Field(default_factory=list)
+        """The program's joints (Scene order)."""
+        lower: list[float] = Field(default_factory=list)
+        """Lowest position per joint [rad or m]."""
+        upper: list[float] = Field(default_factory=list)
+        """Highest position per joint [rad or m]."""
+        velocity_limit: list[float] = Field(default_factory=list)
+        """Largest speed per joint [rad/s or m/s]."""
+        joint_weights: list[float] = Field(default_factory=lambda: [1.0])
+        """Weight of each joint's velocity: one value, or one per joint (> 0)."""
+        period: float = Field(default=0.01, gt=0)
+        """The nominal tick period [s], used until two ticks were seen."""
+
+        @model_validator(mode='after')
+        def _per_joint(self) -> 'SolverEntity.Parameters':
+            n = len(self.joint_names)
+            for key in ('lower', 'upper', 'velocity_limit'):
+                if len(getattr(self, key)) != n:
+                    raise ValueError(f'{key} has {len(getattr(self, key))} values for {n} joints')
+            if len(self.joint_weights) not in (1, n) or min(self.joint_weights) <= 0:
+                raise ValueError('joint_weights: one positive value, or one per joint')
+            return self
 
     @classmethod
-    def port_specs(cls, params: dict[str, Any]) -> list[PortSpec]:
+    def port_specs(cls, params: Parameters) -> list[PortSpec]:
         return [
             PortSpec(name='rows', direction='input', msg_type=RowsMsg, type='constraint_rows',
                      semantics=ROWS_SEMANTICS, multiple=True),
@@ -78,34 +110,23 @@ class SolverEntity(FunctionalEntity):
                      semantics='SolverStatus(program)'),
         ]
 
-    def validate_parameters(self, params: dict[str, Any]) -> str | None:
-        if params['kind'] not in ('wdls', 'qp'):
-            return f"kind must be 'wdls' or 'qp', got {params['kind']!r}"
-        n = len([j for j in params['joint_names'] if j])
-        for key in ('lower', 'upper', 'velocity_limit'):
-            if len(params[key]) != n:
-                return f'{key} has {len(params[key])} values for {n} joints'
-        if len(params['joint_weights']) not in (1, n) or min(params['joint_weights']) <= 0:
-            return 'joint_weights: one positive value, or one per joint'
-        if params['damping'] < 0 or params['regularization'] <= 0 or params['period'] <= 0 \
-                or not 0 < params['position_limit_gain'] <= 1:
-            return 'damping >= 0, regularization > 0, 0 < position_limit_gain <= 1 and period > 0 expected'
-        return None
-
-    def configure(self, params: dict[str, Any]) -> None:
-        self.joint_names = [j for j in params['joint_names'] if j]
+    def configure(self, params: Parameters) -> None:
+        self.joint_names = tuple(params.joint_names)
         self._index = {name: i for i, name in enumerate(self.joint_names)}
-        self.lower = np.array(params['lower'], dtype=float)
-        self.upper = np.array(params['upper'], dtype=float)
-        self.velocity_limit = np.array(params['velocity_limit'], dtype=float)
-        weights = np.array(params['joint_weights'], dtype=float)
-        common = {'joint_weights': weights[0] if weights.size == 1 else weights,
-                  'position_limit_gain': params['position_limit_gain']}
-        if params['kind'] == 'wdls':
-            self.solver = WdlsSolver(max_damping=params['damping'], **common)
+        self._columns: dict[tuple[str, ...], list[int]] = {}
+        self.lower = np.array(params.lower, dtype=float)
+        self.upper = np.array(params.upper, dtype=float)
+        self.velocity_limit = np.array(params.velocity_limit, dtype=float)
+        weights = np.array(params.joint_weights, dtype=float)
+        joint_weights = weights[0] if weights.size == 1 else weights
+        self.solver: WdlsSolver | QpSolver
+        if params.kind == 'wdls':
+            self.solver = WdlsSolver(max_damping=params.damping, joint_weights=joint_weights,
+                                     position_limit_gain=params.position_limit_gain)
         else:
-            self.solver = QpSolver(backend=params['backend'], regularization=params['regularization'], **common)
-        self.period = params['period']
+            self.solver = QpSolver(backend=params.backend, regularization=params.regularization,
+                                   joint_weights=joint_weights, position_limit_gain=params.position_limit_gain)
+        self.period = params.period
         self._last_t: float | None = None
         self._dt = self.period
         self.status = 'ok'
@@ -133,15 +154,18 @@ class SolverEntity(FunctionalEntity):
                 raise Infeasible(f'infeasible problem: the constraints of {tasks} cannot be met together')
         except (NonFinite, Infeasible) as err:
             self._command(np.zeros(len(self.joint_names)), t)
-            self.raise_event('e_emergency', priority=True, detail=str(err))
+            self.raise_event(SAFETY_EVENT, priority=True, detail=str(err))
             return
         self._command(result.qdot, t)
         self._report(result, t)
 
-    def _positions(self, state: JointState) -> np.ndarray:
-        by_name = dict(zip(state.name, state.position))
-        q = np.array([by_name.get(n, math.nan) for n in self.joint_names], dtype=float)
-        if not np.isfinite(q).all():
+    def _positions(self, state: JointSample) -> np.ndarray:
+        if state.name == self.joint_names:  # the Scene's order
+            q = state.position
+        else:
+            by_name = dict(zip(state.name, state.position))
+            q = np.array([by_name.get(n, math.nan) for n in self.joint_names], dtype=float)
+        if q.shape != (len(self.joint_names),) or not math.isfinite(q.sum()):
             raise NonFinite('joint positions missing or non-finite')
         return q
 
@@ -149,37 +173,42 @@ class SolverEntity(FunctionalEntity):
         """The rows of this tick (stale rows of deactivated Tasks are left out), in Scene order."""
         fresh = t - 1.5 * self._dt
         rows = []
-        for msg in self.inputs['rows'].samples.values():
-            if seconds(msg.stamp) < fresh or msg.rows == 0:
+        for sample in self.inputs['rows'].samples.values():
+            if sample.t < fresh or sample.rows == 0:
                 continue
-            J = np.zeros((msg.rows, len(self.joint_names)))
-            columns = [self._index[name] for name in msg.joint_names]
-            J[:, columns] = np.asarray(msg.jacobian, dtype=float).reshape(msg.rows, len(columns))
-            row = ConstraintRows(msg.task, int(msg.priority), J, np.asarray(msg.desired, dtype=float),
-                                 np.asarray(msg.lower, dtype=float), np.asarray(msg.upper, dtype=float),
-                                 np.asarray(msg.weights, dtype=float), inequality=msg.inequality)
-            if not (np.isfinite(J).all() and np.isfinite(row.desired).all() and np.isfinite(row.weights).all()
-                    and not np.isnan(row.lower).any() and not np.isnan(row.upper).any()):
-                raise NonFinite(f'non-finite constraint rows from task {msg.task}')
-            rows.append(row)
+            rows.append(self._problem_rows(sample))
         return rows
 
+    def _problem_rows(self, sample: RowsSample) -> ConstraintRows:
+        J = sample.jacobian
+        if sample.joint_names != self.joint_names:  # columns of some joints, in another order
+            columns = self._columns.get(sample.joint_names)
+            if columns is None:
+                columns = self._columns[sample.joint_names] = [self._index[name] for name in sample.joint_names]
+            J = np.zeros((sample.rows, len(self.joint_names)))
+            J[:, columns] = sample.jacobian
+        row = ConstraintRows(sample.task, int(sample.priority), J, sample.desired, sample.lower, sample.upper,
+                             sample.weights, inequality=sample.inequality)
+        # one sum each for the usual case (a NaN or inf makes it non-finite); the exact test otherwise
+        if not (math.isfinite(J.sum() + row.desired.sum() + row.weights.sum())
+                and not math.isnan(row.lower.sum() - row.upper.sum())):
+            if not (np.isfinite(J).all() and np.isfinite(row.desired).all() and np.isfinite(row.weights).all()
+                    and not np.isnan(row.lower).any() and not np.isnan(row.upper).any()):
+                raise NonFinite(f'non-finite constraint rows from task {sample.task}')
+        return row
+
     def _command(self, qdot: np.ndarray, t: float) -> None:
-        msg = JointState(name=self.joint_names, velocity=[float(v) for v in qdot])
-        msg.header.stamp = stamp(t)
-        self.outputs['command'].write(msg)
+        self.outputs['command'].write(JointSample(t, self.joint_names, velocity=qdot))
 
     def _report(self, result, t: float) -> None:
         if result.status != self.status:
             self.status = result.status
-            self.raise_event(f'e_solver_{result.status}', detail=', '.join(result.tasks))
+            self.raise_event(solver_status(result.status), detail=', '.join(result.tasks))
         sigma = float(result.min_singular_value)
-        msg = SolverStatus(solver=self.entity_name, status=result.status, solve_time=result.solve_time,
-                           min_singular_value=sigma if math.isfinite(sigma) else -1.0,  # -1: not computed
-                           damping=float(result.damping),
-                           active_tasks=list(result.tasks))
-        msg.stamp = stamp(t)
-        self.outputs['status'].write(msg)
+        self.outputs['status'].write(SolverStatusSample(
+            t, self.entity_name, status=result.status, solve_time=result.solve_time,
+            min_singular_value=sigma if math.isfinite(sigma) else -1.0,  # -1: not computed
+            damping=float(result.damping), active_tasks=tuple(result.tasks)))
 
     def disengage(self) -> None:
         self._command(np.zeros(len(self.joint_names)), self._last_t or 0.0)

@@ -173,7 +173,9 @@ class QpSolver:
             H, f = Hv, fv
         # general constraints C x in [cl, cu]: level inequalities (with their slacks), kept
         # higher-level inequalities, then the locked equalities
-        blocks, cl, cu = [], [], []
+        blocks: list[np.ndarray] = []
+        cl: list[np.ndarray] = []
+        cu: list[np.ndarray] = []
         if ms:
             blocks.append(np.hstack([np.concatenate([r.J for r in ineq]), np.eye(ms)]))
             cl += [r.lower for r in ineq]
@@ -189,12 +191,12 @@ class QpSolver:
             cl.append(target)
             cu.append(target)
         if not blocks:
-            C, cl, cu = np.zeros((0, m)), lb, ub
+            C, lower, upper = np.zeros((0, m)), lb, ub
         else:
             C = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
-            cl, cu = np.concatenate([lb] + cl), np.concatenate([ub] + cu)
+            lower, upper = np.concatenate([lb, *cl]), np.concatenate([ub, *cu])
         solve = self._solve_daqp if self.direct else self._solve_qpsolvers
-        return solve(H, f, C, cl, cu, n_ineq, n)
+        return solve(H, f, C, lower, upper, n_ineq, n)
 
     def _solve_daqp(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, lower: np.ndarray,
                     upper: np.ndarray, n_ineq: int, n: int) -> np.ndarray | None:
@@ -220,11 +222,11 @@ class QpSolver:
         ubx = np.concatenate([np.minimum(ub, _BIG), np.full(m - n, _BIG)])
         if self.backend == 'osqp':
             from scipy import sparse
-            H, G, A = (None if M is None else sparse.csc_matrix(M) for M in (H, G, A))
+            H, G, A = (None if M is None else sparse.csc_matrix(M) for M in (H, G, A))  # type: ignore[assignment]
         try:
             x = qpsolvers.solve_qp(H, f, G, h, A, b, lbx, ubx, solver=self.backend,
                                    **self.backend_options)
-        except Exception:  # a backend failing on a degenerate level is an infeasible level
+        except Exception:  # noqa: BLE001 - a backend failing on a degenerate level is an infeasible level
             return None
         return None if x is None or not np.isfinite(x).all() else x[:n]
 

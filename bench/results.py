@@ -1,0 +1,120 @@
+"""``bench/RESULTS.md`` and ``bench/results.png`` from one run of ``bench_app.py`` (issue #9)."""
+
+from __future__ import annotations
+
+import pathlib
+
+__all__ = ['write_results']
+
+
+def _us(value) -> str:
+    return '-' if value is None else f'{value:.0f}'
+
+
+def _s(value) -> str:
+    return '-' if value is None else f'{value:.2f}'
+
+
+def _ratio(value) -> str:
+    return '-' if value is None else f'{value:.2f}'
+
+
+def _row(what: str, r: dict) -> str:
+    return (f"| {what} | {r['achieved_hz']:.1f} | {_us(r['tick_p50_us'])} | {_us(r['tick_p99_us'])} | "
+            f"{_us(r.get('qp_p50_us'))} | {_us(r.get('solver_p50_us'))} | {_ratio(r.get('tick_over_solver'))} | "
+            f"{_us(r.get('handwritten_p50_us'))} | {_ratio(r.get('tick_over_handwritten'))} | "
+            f"{_s(r.get('bring_up_s'))} | {_s(r.get('start_to_running_s'))} | {r['load_before']:.1f} |")
+
+
+HEADER = ('| run | achieved Hz | tick p50 µs | tick p99 µs | QP p50 µs (in the app) | solver step p50 µs | '
+          'tick / solver step | hand-written p50 µs | tick / hand-written | up after s (rclpy.init) | '
+          'up after s (process start) | load |\n|' + '---|' * 12)
+
+
+def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Path) -> None:
+    m = results['machine']
+    lines = [
+        '# Benchmark results (issue #9)',
+        '',
+        f"Written by `make bench` (`python bench/bench_app.py`) on {m['date']}: {m['cpu']}, {m['cores']} cores; "
+        + ', '.join(f'{k} {v}' for k, v in m['versions'].items()) + '. The load column is the 1-minute load '
+        'average when the run started: these machines are shared, so the ratios measured in one run matter more '
+        'than the absolute times.',
+        '',
+        'Every application run goes through the bootstrap (`python -m itasc_bringup.bootstrap APP --rate HZ '
+        '--duration S`, console and visualization included). *Solver step*: the Scene update, every active Task\'s '
+        'rows and the QP on the same problem, as one plain computation (`bench/fused.py`), timed in the same run. '
+        '*Hand-written*: one rclpy node reading `joint_states` from a simulated driver in another process, running '
+        'that same step and publishing the command (`bench/handwritten.py`), same run.',
+        '',
+        f"![tick time and rate against the requested rate; bring-up and tick time against the number of Tasks]"
+        f"({picture.name})",
+        '',
+        '## approach_object, `--deploy single`',
+        '',
+        HEADER,
+    ]
+    for r in results['rates']:
+        lines.append(_row(f"{r['rate_hz']:g} Hz", r))
+    if results.get('record'):
+        lines.append(_row(f"{results['record']['rate_hz']:g} Hz `--record`", results['record']))
+    if results.get('per_composite'):
+        r = results['per_composite']
+        lines += ['', '## approach_object, `--deploy per-composite`', '', HEADER, _row(f"{r['rate_hz']:g} Hz", r)]
+    if results.get('tasks'):
+        lines += ['', f"## Number of Tasks (Panda, 7 DOF, {results['tasks'][0]['rate_hz']:g} Hz)", '', HEADER]
+        lines += [_row(f"{r['tasks']} Tasks", r) for r in results['tasks']]
+    if results.get('dof'):
+        lines += ['', '## Degrees of freedom (5 Tasks)', '', HEADER]
+        lines += [_row(r['robot'], r) for r in results['dof']]
+    reaction = results.get('reaction')
+    if reaction:
+        lines += ['', '## Reaction to a Monitor', '',
+                  f"approach_object at {reaction['rate_hz']:g} Hz: the Monitor `{reaction['monitor']}` raised its "
+                  f"event in tick {reaction['raised_in_tick']}; the new gains were used from tick "
+                  f"{reaction['first_tick_with_new_gains']} ({reaction['raised_to_applied_ms']:.2f} ms after the "
+                  "raise); "
+                  f"the Driver acted on them **{reaction['reaction_ticks']} ticks** after the condition became true "
+                  '(`bench/reaction.py`).']
+    markdown.write_text('\n'.join(lines) + '\n')
+    _picture(results, picture)
+
+
+def _picture(results: dict, path: pathlib.Path) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    rates = results['rates']
+    requested = [r['rate_hz'] for r in rates]
+    left.plot(requested, [r['tick_p50_us'] for r in rates], 'o-', label='tick p50')
+    left.plot(requested, [r['tick_p99_us'] for r in rates], 's--', label='tick p99')
+    if all('solver_p50_us' in r for r in rates):
+        left.plot(requested, [r['solver_p50_us'] for r in rates], '^:', label='solver step alone p50')
+    if all('handwritten_p50_us' in r for r in rates):
+        left.plot(requested, [r['handwritten_p50_us'] for r in rates], 'v:', label='hand-written node p50')
+    left.set_xlabel('requested rate [Hz]')
+    left.set_ylabel('time [µs]')
+    left.set_title('approach_object, --deploy single')
+    left.legend(loc='upper left')
+    achieved = left.twinx()
+    achieved.plot(requested, [r['achieved_hz'] for r in rates], 'k*-', label='achieved rate')
+    achieved.plot(requested, requested, color='0.7', linewidth=0.8)
+    achieved.set_ylabel('achieved rate [Hz]')
+    achieved.legend(loc='lower right')
+    tasks = results.get('tasks') or []
+    if tasks:
+        n = [r['tasks'] for r in tasks]
+        right.plot(n, [r['bring_up_s'] or 0.0 for r in tasks], 'o-', label='up after [s] (rclpy.init)')
+        right.plot(n, [r['start_to_running_s'] or 0.0 for r in tasks], 's--', label='up after [s] (process start)')
+        right.set_xlabel('number of Tasks')
+        right.set_ylabel('bring-up [s]')
+        right.legend(loc='upper left')
+        tick = right.twinx()
+        tick.plot(n, [r['tick_p50_us'] / 1e3 for r in tasks], 'k^:', label='tick p50 [ms]')
+        tick.set_ylabel('tick p50 [ms]')
+        tick.legend(loc='lower right')
+        right.set_title(f"Panda, {tasks[0]['rate_hz']:g} Hz")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)

@@ -1,0 +1,88 @@
+"""Observing data-flow topics without costing the control loop a DDS send (issue #9).
+
+Every DDS reader of a topic the tick publishes makes the tick pay for the publish: the message
+built from its sample, serialised and sent by Fast DDS in the publishing thread (0.2-0.6 ms per
+publish on a loaded two-core machine, ``bench/bench_visualization.py``). So the tools that watch
+every sample of a run (the console's summary, the recorder) *tap* the output port when it lives
+in this process (:meth:`~itasc_core.communication.ports.OutputPort.tap`: the sample object is
+handed over in the tick, nothing else happens there), and read the topic over DDS only when its
+publisher lives in another process (``--deploy per-composite``, another host). A DDS reader made
+before the port existed (tools start before the hierarchy is deployed, so that they miss no tick
+of a composite that turns out to be remote) is replaced by a tap as soon as the port appears here.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+from itasc_core.communication.ports import LocalBus, OutputPort
+from itasc_core.communication.samples import as_sample
+
+__all__ = ['Observer']
+
+Callback = Callable[[str, Any], None]
+
+
+class Observer:
+    """Hands every sample of the observed local outputs to their callback, ``callback(topic,
+    sample)``, from a tap in the tick; a topic whose output is not (yet) in this process is read by
+    the DDS reader its ``subscribe()`` makes, replaced by the tap when the output appears here."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._wanted: dict[str, Callback] = {}
+        self._tapped: dict[str, OutputPort] = {}
+        self._readers: dict[str, Any] = {}
+        self._bus = LocalBus.of(node.context)
+        self._unwatch = self._bus.watch(self._appeared)
+
+    def observe(self, topic: str, callback: Callback, *, subscribe: Callable[[], Any]) -> None:
+        """From now on, every sample of ``topic`` to ``callback`` (tapped), or, while its output
+        is not in this process, whatever the subscription ``subscribe()`` makes receives."""
+        self._wanted[topic] = callback
+        port = self._bus.lookup(topic)
+        if port is not None:
+            self._tap(port)
+        else:
+            self._readers[topic] = subscribe()
+
+    def samples(self, topic: str, msg_type: type, callback: Callback, *, qos: QoSProfile) -> None:
+        """Every sample of ``topic`` to ``callback``: tapped, or over DDS, each message turned into
+        its sample."""
+        self.observe(topic, callback, subscribe=lambda: self._node.create_subscription(
+            msg_type, topic, lambda msg: callback(topic, as_sample(msg)), qos))
+
+    def local(self, topic: str) -> bool:
+        """Whether ``topic``'s output is in this process."""
+        return self._bus.lookup(topic) is not None
+
+    @property
+    def tapped(self) -> set[str]:
+        return set(self._tapped)
+
+    def _appeared(self, port: OutputPort) -> None:
+        if port.topic in self._wanted:
+            self._tap(port)
+
+    def _tap(self, port: OutputPort) -> None:
+        previous = self._tapped.get(port.topic)
+        if previous is port:
+            return
+        if previous is not None:  # re-composed: a new output on the same topic
+            previous.untap(self._wanted[port.topic])
+        reader = self._readers.pop(port.topic, None)
+        if reader is not None:
+            self._node.destroy_subscription(reader)
+        port.tap(self._wanted[port.topic])
+        self._tapped[port.topic] = port
+
+    def close(self) -> None:
+        """Tap nothing more (the DDS readers go with the node)."""
+        self._unwatch()
+        for topic, port in self._tapped.items():
+            port.untap(self._wanted[topic])
+        self._tapped.clear()
+        self._wanted.clear()

@@ -1,0 +1,177 @@
+"""The process that writes a recording (issue #9: recording off the control path).
+
+Writing MCAP (chunking, zstd compression, the file) takes a good share of a core when every
+data-flow topic is recorded at 1 kHz. The recorder (:mod:`.recorder`) hands each message's CDR
+bytes to :class:`BagProcess`, which sends them in batches down a pipe, from a thread of its own
+(a full pipe blocks that thread, never the control loop), to a process running :func:`main`: that
+process owns the bag (:class:`~.bag.BagWriter`), flushes it every second and finishes it (summary,
+footer, ``metadata.yaml``) when told to close, or when the pipe ends because the recording process
+died, however it died. It runs in a session of its own,
+so that a terminal's Ctrl-C reaches only the application, which then closes the recording in order.
+
+Frames on the pipe: a header ``<BI`` (kind, payload length), then the payload: ``TOPIC`` (pickled
+``(key, topic, type_name, qos profiles as rosbag2 writes them)``), ``MESSAGES`` (records ``<IqqI``
+key, log time, publish time, length, then the CDR bytes), ``FLUSH``, ``CLOSE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pickle
+import queue
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+__all__ = ['BagProcess', 'main']
+
+TOPIC, MESSAGES, FLUSH, CLOSE = 1, 2, 3, 4
+_FRAME = struct.Struct('<BI')
+_RECORD = struct.Struct('<IqqI')
+#: Messages are sent once this many bytes are waiting (or on flush).
+BATCH = 1 << 16
+#: The writer flushes the file at least this often [s] (``mcap recover`` salvages what was flushed).
+FLUSH_PERIOD = 1.0
+#: The writer process's program (not ``-m``: the package imports this module before runpy would run it).
+_MAIN = 'import sys; from itasc_bringup.recording.writer import main; sys.exit(main(sys.argv[1:]))'
+
+
+class BagProcess:
+    """The recording process's side: a bag written by a process of its own."""
+
+    def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup') -> None:
+        from .bag import mcap_path_of
+        mcap_path_of(Path(path))  # BagExists, and the folder made, here: before anything starts
+        self._process = subprocess.Popen(
+            [sys.executable, '-c', _MAIN, os.fspath(path), '--compression', compression, '--library', library],
+            stdin=subprocess.PIPE, start_new_session=True)
+        self._fd = self._process.stdin.fileno()
+        self._queue: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+        self._sender = threading.Thread(target=self._send, name='recording writer', daemon=True)
+        self._sender.start()
+        self._pending = bytearray()
+        self._keys = 0
+        self.closed = False
+
+    def add_topic(self, topic: str, type_name: str, *, profiles: list[dict[str, Any]]) -> int:
+        """Register ``topic`` (its QoS profiles as :func:`~.bag.qos_profiles` gives them); returns its key."""
+        self._keys += 1
+        self._flush_pending()
+        self._queue.put(self._frame(TOPIC, pickle.dumps((self._keys, topic, type_name, profiles))))
+        return self._keys
+
+    def write(self, key: int, data: bytes, *, time_ns: int, publish_time_ns: int | None = None) -> None:
+        self._pending += _RECORD.pack(key, time_ns, time_ns if publish_time_ns is None else publish_time_ns, len(data))
+        self._pending += data
+        if len(self._pending) >= BATCH:
+            self._flush_pending()
+
+    def flush(self) -> None:
+        """Send what waits, and have the writer flush the file."""
+        self._flush_pending()
+        self._queue.put(self._frame(FLUSH, b''))
+
+    def close(self, *, timeout: float = 30.0) -> None:
+        """Send what waits, have the writer finish the bag, and wait until it did."""
+        if self.closed:
+            return
+        self.closed = True
+        self._flush_pending()
+        self._queue.put(self._frame(CLOSE, b''))
+        self._queue.put(None)
+        self._sender.join(timeout)
+        try:
+            self._process.stdin.close()
+        except OSError:
+            pass
+        try:
+            self._process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait()
+
+    def _flush_pending(self) -> None:
+        if self._pending:
+            self._queue.put(self._frame(MESSAGES, bytes(self._pending)))
+            self._pending.clear()
+
+    @staticmethod
+    def _frame(kind: int, payload: bytes) -> bytes:
+        return _FRAME.pack(kind, len(payload)) + payload
+
+    def _send(self) -> None:
+        while True:
+            data = self._queue.get()
+            if data is None:
+                return
+            view = memoryview(data)
+            while view:
+                try:
+                    view = view[os.write(self._fd, view):]
+                except BrokenPipeError:  # the writer is gone: nothing more can be recorded
+                    return
+                except InterruptedError:
+                    continue
+
+
+def _frames(stream) -> Iterable[tuple[int, bytes]]:
+    while True:
+        header = stream.read(_FRAME.size)
+        if len(header) < _FRAME.size:
+            return
+        kind, size = _FRAME.unpack(header)
+        payload = stream.read(size)
+        if len(payload) < size:
+            return
+        yield kind, payload
+
+
+def _records(payload: bytes) -> Iterable[tuple[int, int, int, bytes]]:
+    offset = 0
+    while offset < len(payload):
+        key, log_ns, publish_ns, size = _RECORD.unpack_from(payload, offset)
+        offset += _RECORD.size
+        yield key, log_ns, publish_ns, payload[offset:offset + size]
+        offset += size
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``main([PATH, ...])``: write the frames on stdin into the bag PATH (the writer process)."""
+    from .bag import BagWriter
+
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('path')
+    parser.add_argument('--compression', default='zstd')
+    parser.add_argument('--library', default='itasc_bringup')
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the recording process closes the bag, or its end does
+    bag = BagWriter(args.path, compression=args.compression, library=args.library)
+    channels: dict[int, int] = {}
+    flushed = time.monotonic()
+    try:
+        for kind, payload in _frames(sys.stdin.buffer):
+            if kind == TOPIC:
+                key, topic, type_name, profiles = pickle.loads(payload)
+                channels[key] = bag.add_topic(topic, type_name, profiles=profiles)
+            elif kind == MESSAGES:
+                for key, log_ns, publish_ns, data in _records(payload):
+                    bag.write(channels[key], data, time_ns=log_ns, publish_time_ns=publish_ns)
+            elif kind == CLOSE:
+                break
+            if kind == FLUSH or time.monotonic() - flushed > FLUSH_PERIOD:
+                bag.flush()
+                flushed = time.monotonic()
+    finally:
+        bag.close()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

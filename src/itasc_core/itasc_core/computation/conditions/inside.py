@@ -1,0 +1,22 @@
+"""The Monitor condition ``inside``: every watched value is inside ``band``, the counterpart of
+``outside`` (e.g. a Task's output arrived in a tolerance band around its target)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from .builtin import Band
+from .kind import Condition
+
+__all__ = ['Inside']
+
+
+class Inside(Condition):
+    """Every watched value is inside ``band`` (bounds included)."""
+
+    Parameters = Band
+    params: Band
+
+    def holds(self, values: Sequence[float] | None, *, age: float, seen: bool = True) -> bool:
+        low, high = self.params.band
+        return bool(values) and all(low <= v <= high for v in values)

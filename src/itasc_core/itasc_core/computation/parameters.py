@@ -1,0 +1,191 @@
+"""Typed parameters of a Functional Entity (paper §5: what a Configurator sets; §4.3: a kind's
+template): one pydantic model per entity kind is the single source of
+
+* the entity's validation (at construction, and for every change: a Configurator's or a
+  ``ros2 param set``, see :meth:`~.functional_entity.FunctionalEntity.ros_parameters`),
+* the DSL schema wherever the model is part of the application model (a controller's gains, a
+  Monitor's condition, a chain's frames, ...),
+* the ROS 2 parameter declarations: each field is one parameter with its type, its docstring as
+  description, its bounds as ``FloatingPointRange``/``IntegerRange`` and its other constraints as
+  ``additional_constraints`` (what ``ros2 param describe`` shows).
+
+ROS parameters hold no nested structures: a nested model ``m`` is declared as ``m.<field>``, a
+``dict[str, Model]`` ``d`` as ``d.<key>.<field>`` (YAML parameter files nest them the same way). A
+field that is None is not declared (ROS parameters have no None).
+"""
+
+from __future__ import annotations
+
+import array
+import math
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, ValidationError, create_model
+from pydantic.fields import FieldInfo
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.parameter import Parameter
+
+__all__ = ['ParameterModel', 'NoParameters', 'declarations', 'flatten', 'nest', 'ros_type', 'problems', 'partial']
+
+_INT64 = 2 ** 63 - 1
+
+
+class ParameterModel(BaseModel):
+    """Base of every entity's parameter model: unknown fields refused, field docstrings kept as
+    descriptions."""
+
+    model_config = ConfigDict(extra='forbid', use_attribute_docstrings=True)
+
+
+class NoParameters(ParameterModel):
+    """An entity without parameters."""
+
+
+def flatten(values: BaseModel) -> dict[str, Any]:
+    """``values`` as ROS parameter values by dotted name (None fields left out)."""
+    return {name: value for name, value, _ in _leaves(values)}
+
+
+def _leaves(values: BaseModel, prefix: str = '') -> list[tuple[str, Any, FieldInfo]]:
+    """Every declared parameter of ``values``: dotted name, ROS value and the field it comes from."""
+    leaves: list[tuple[str, Any, FieldInfo]] = []
+    for name, info in type(values).model_fields.items():
+        value = getattr(values, name)
+        key = f'{prefix}{name}'
+        if value is None:
+            continue
+        if isinstance(value, BaseModel):
+            leaves += _leaves(value, f'{key}.')
+        elif isinstance(value, Mapping):
+            item = FieldInfo(annotation=_unwrap(typing.get_args(_unwrap(info.annotation))[1]),
+                             description=info.description)
+            for k, v in value.items():
+                leaves += _leaves(v, f'{key}.{k}.') if isinstance(v, BaseModel) else [(f'{key}.{k}', _plain(v), item)]
+        else:
+            leaves.append((key, _plain(value), info))
+    return leaves
+
+
+def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """Dotted ROS parameter names back into the nested mapping a model validates."""
+    nested: dict[str, Any] = {}
+    for name, value in flat.items():
+        *path, last = name.split('.')
+        node = nested
+        for part in path:
+            node = node.setdefault(part, {})
+        node[last] = list(value) if isinstance(value, (array.array, tuple)) else value
+    return nested
+
+
+def declarations(values: BaseModel) -> list[tuple[str, Any, ParameterDescriptor]]:
+    """What to declare for ``values``: per leaf, ``(name, value, descriptor)``."""
+    return [(name, value, describe(info, value)) for name, value, info in _leaves(values)]
+
+
+def problems(err: Exception) -> str:
+    """A validation error in one line: ``field.path: what is wrong; ...``."""
+    if not isinstance(err, ValidationError):
+        return str(err)
+    return '; '.join(f"{'.'.join(map(str, e['loc'])) or 'parameters'}: {e['msg']}" for e in err.errors())
+
+
+def partial(model: type[BaseModel], *, name: str, doc: str, exclude: tuple[str, ...] = ()) -> type[BaseModel]:
+    """``model`` with every field but ``exclude`` optional (default None), constraints and docstrings
+    kept: what a named configuration may change of it."""
+    fields: dict[str, Any] = {}
+    for key, info in model.model_fields.items():
+        if key in exclude:
+            continue
+        copy = FieldInfo.merge_field_infos(info, default=None)
+        fields[key] = (typing.Optional[info.annotation], copy)
+    return create_model(name, __base__=ParameterModel, __doc__=doc, **fields)
+
+
+def ros_type(value: Any, info: FieldInfo | None = None) -> Parameter.Type:
+    """The ROS parameter type of ``value`` (an empty list takes its element type from ``info``)."""
+    if isinstance(value, list) and not value and info is not None:
+        return _LIST_TYPES.get(_element(info.annotation), Parameter.Type.STRING_ARRAY)
+    return Parameter.Type.from_parameter_value(value)
+
+
+def describe(info: FieldInfo | None, value: Any) -> ParameterDescriptor:
+    """The descriptor of a parameter of field ``info`` holding ``value``."""
+    descriptor = ParameterDescriptor(type=ros_type(value, info).value)
+    if info is None:
+        return descriptor
+    descriptor.description = ' '.join((info.description or '').split())
+    low, high, notes = _bounds(info)
+    choices = _choices(info.annotation)
+    if choices:
+        notes.append('one of ' + ', '.join(choices))
+    if isinstance(value, bool) or not (low > -math.inf or high < math.inf):
+        pass
+    elif isinstance(value, int):
+        descriptor.integer_range = [IntegerRange(from_value=int(max(low, -_INT64)), to_value=int(min(high, _INT64)),
+                                                 step=0)]
+    elif isinstance(value, float):
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+    descriptor.additional_constraints = '; '.join(notes)
+    return descriptor
+
+
+# -- model structure --------------------------------------------------------------------------------
+
+_LIST_TYPES = {float: Parameter.Type.DOUBLE_ARRAY, int: Parameter.Type.INTEGER_ARRAY,
+               bool: Parameter.Type.BOOL_ARRAY, str: Parameter.Type.STRING_ARRAY}
+
+
+def _plain(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
+def _unwrap(annotation: Any) -> Any:
+    """``X | None`` and ``Annotated[X, ...]`` -> X."""
+    while True:
+        origin = typing.get_origin(annotation)
+        if origin is typing.Annotated:
+            annotation = typing.get_args(annotation)[0]
+        elif origin in (typing.Union, types.UnionType):
+            args = [a for a in typing.get_args(annotation) if a is not type(None)]
+            if len(args) != 1:
+                return annotation
+            annotation = args[0]
+        else:
+            return annotation
+
+
+def _element(annotation: Any) -> Any:
+    args = typing.get_args(_unwrap(annotation))
+    return _unwrap(args[0]) if args else str
+
+
+def _choices(annotation: Any) -> list[str]:
+    inner = _unwrap(annotation)
+    if typing.get_origin(inner) is Literal:
+        return [str(a) for a in typing.get_args(inner)]
+    return []
+
+
+def _bounds(info: FieldInfo) -> tuple[float, float, list[str]]:
+    """Lowest and highest value a scalar field allows, and its constraints in words."""
+    low, high, notes = -math.inf, math.inf, []
+    for item in info.metadata:  # annotated_types' Ge, Gt, Le, Lt and MinLen, as pydantic keeps them
+        if getattr(item, 'ge', None) is not None:
+            low = max(low, float(item.ge))
+            notes.append(f'>= {item.ge}')
+        elif getattr(item, 'gt', None) is not None:
+            low = max(low, float(item.gt))
+            notes.append(f'> {item.gt}')
+        elif getattr(item, 'le', None) is not None:
+            high = min(high, float(item.le))
+            notes.append(f'<= {item.le}')
+        elif getattr(item, 'lt', None) is not None:
+            high = min(high, float(item.lt))
+            notes.append(f'< {item.lt}')
+        elif getattr(item, 'min_length', None):
+            notes.append('not empty' if item.min_length == 1 else f'at least {item.min_length} values')
+    return low, high, notes

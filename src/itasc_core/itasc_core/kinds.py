@@ -1,0 +1,93 @@
+"""The registry of kinds (paper §4.3: a template per kind, the implementation attached by metadata):
+task types, monitor conditions, ... each registered once, under a name a model refers to.
+
+A kind is a class that brings everything the project needs of it: its typed parameter model
+(:mod:`.computation.parameters`: the same model is its section of the application model and its
+entity's ROS parameters), its computation, and what the model transform does with it. Kinds are
+registered through Python entry points, one group per category (``itasc.task_types``,
+``itasc.conditions``), the way launch_ros and colcon find their extensions: this project's own
+kinds in its packages' ``setup.py``, kinds of other packages in theirs. Adding a kind is one new
+file and one registration line. Nothing is imported before a model names the category.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import entry_points
+from typing import Annotated, Any, Generic, Literal, TypeVar, Union, cast
+
+from pydantic import BaseModel, Discriminator, Field, Tag, create_model
+
+__all__ = ['Registry', 'UnknownKind', 'variants', 'TAG', 'PROJECT']
+
+K = TypeVar('K')
+#: The distributions of this project (its own kinds; any other is a plugin's).
+PROJECT = ('itasc_core', 'itasc_tasks', 'itasc_drivers', 'itasc_bringup')
+#: How a kind's variant is tagged in a union (``condition=above``): the loader leaves such tags out of
+#: the paths its errors name.
+TAG = '{field}={name}'
+
+
+class UnknownKind(ValueError, LookupError):
+    pass
+
+
+class Registry(Generic[K]):
+    """The kinds of one category: ``name -> class`` from the entry point group ``group``."""
+
+    def __init__(self, group: str, *, what: str, base: type) -> None:
+        self.group, self.what, self.base = group, what, base
+        self._kinds: dict[str, type[K]] | None = None
+        self._origins: dict[str, str] = {}
+
+    def kinds(self) -> dict[str, type[K]]:
+        """Every registered kind by name (loaded once per process, sorted by name)."""
+        if self._kinds is None:
+            found: dict[str, type[K]] = {}
+            for point in sorted(entry_points(group=self.group), key=lambda p: p.name):
+                if point.name in found:
+                    continue  # an entry point seen twice (the same distribution on two paths)
+                kind = point.load()
+                if not (isinstance(kind, type) and issubclass(kind, self.base)):
+                    raise TypeError(f"{self.what} '{point.name}' ({point.value}) is not a {self.base.__name__}")
+                found[point.name] = cast(type[K], kind)
+                self._origins[point.name] = point.dist.name if point.dist is not None else ''
+            self._kinds = found
+        return self._kinds
+
+    def names(self) -> list[str]:
+        return list(self.kinds())
+
+    def plugins(self) -> list[str]:
+        """The kinds other packages registered (not this project's)."""
+        self.kinds()
+        return [name for name, origin in self._origins.items() if origin.replace('-', '_') not in PROJECT]
+
+    def __getitem__(self, name: str) -> type[K]:
+        kinds = self.kinds()
+        if name not in kinds:
+            raise UnknownKind(f"unknown {self.what} '{name}': not one of {sorted(kinds)} (entry point group "
+                              f"'{self.group}')")
+        return kinds[name]
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in self.kinds()
+
+
+def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suffix: str) -> Any:
+    """The type "``base`` and the parameters of the kind its ``field`` names": a union with one model
+    per registered kind (``<Kind><suffix>``: ``base``'s fields, then the kind's, ``field`` fixed to
+    the kind's name), told apart by ``field``. This is how a kind's parameter model becomes its
+    section of the application model."""
+    members = []
+    for name, kind in registry.kinds().items():
+        doc = f'{(base.__doc__ or "").strip()}\n\n``{field}: {name}``: {(kind.__doc__ or "").strip()}'
+        fields: dict[str, Any] = {field: (Literal[name], Field(description=base.model_fields[field].description))}
+        model = create_model(f'{kind.__name__}{suffix}', __base__=(kind.Parameters, base), __doc__=doc, **fields)
+        members.append(Annotated[model, Tag(TAG.format(field=field, name=name))])
+
+    def tag(value: Any) -> str | None:
+        name = value.get(field) if isinstance(value, dict) else getattr(value, field, None)
+        return TAG.format(field=field, name=name) if name in registry else None
+    return Annotated[Union[tuple(members)], Discriminator(
+        tag, custom_error_type='unknown_kind', custom_error_message=f'unknown {registry.what}',
+        custom_error_context={'field': field, 'what': registry.what, 'known': ', '.join(map(repr, registry.names()))})]

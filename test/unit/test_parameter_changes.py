@@ -1,0 +1,82 @@
+"""Parameters set on a running entity are configuration (issue #14 item 4; paper §5): checked by the
+entity's parameter model (the rules of the model file: declared type and range, then the model's
+own), and every change or refusal raised as an event naming the entity, the parameter, the old and
+the new value, and who set it; a ``ros2 param dump`` of running entities becomes a named
+configuration of the model. Real rclpy nodes, no mocks."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+
+from itasc_bringup.model.dump import configuration_of
+from itasc_core.communication.events import EventListener
+from itasc_core.entity import CompositeContext
+from itasc_tasks.entities import ConstraintControllerEntity
+
+TASK = CompositeContext(name='T', namespace='/changes/T')
+
+
+@pytest.fixture
+def controller():
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    cc = ConstraintControllerEntity('CC', composite=TASK, parameters={'task': 'T', 'kp': 2.0})
+    heard: list = []
+    EventListener(cc, topics=[TASK.events_topic], immediate=True, on_priority=heard.append)
+    yield cc, heard
+    cc.destroy_node()
+    rclpy.try_shutdown()
+
+
+def spin(node, until, timeout: float = 5.0) -> None:
+    end = time.monotonic() + timeout
+    while not until() and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+
+
+@pytest.mark.parametrize('name, value, reason', [
+    ('kp', -1.0, 'Parameter kp out of range Min: 0.0, Max: inf, value: -1.0'),
+    ('kind', 'pd', "kind: Input should be 'p' or 'pid'"),
+    ('max_output', 0.0, 'max_output: Input should be greater than 0'),
+    ('kp', 'fast', "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'"),
+])
+def test_a_value_the_model_refuses_is_refused_recorded_and_changes_nothing(controller, name, value, reason):
+    cc, heard = controller
+    (result,) = cc.set_parameters([Parameter(name, value=value)])
+    assert (result.successful, result.reason) == (False, reason)
+    assert cc.controller.kp == 2.0 and cc.params.kind == 'pid'
+    spin(cc, lambda: heard)
+    assert [(e.name, e.source, e.detail) for e in heard] == [
+        ('e_CC_parameter_refused', '/changes/T/CC', f'{name} = {value!r}: {reason} (set from outside)')]
+
+
+def test_a_change_is_taken_at_once_and_raised_with_old_and_new_value_and_who(controller):
+    cc, heard = controller
+    result = cc.set_parameters_atomically([Parameter('kp', value=3.0)])  # what ~/set_parameters runs
+    assert result.successful, result.reason
+    assert cc.controller.kp == 3.0
+    with cc.set_by('configuration stiff'):  # as a Configurator applies a named configuration
+        cc.set_parameters([Parameter('kp', value=5.0), Parameter('ki', value=0.0)])  # ki unchanged: no event
+    spin(cc, lambda: len(heard) >= 2)
+    assert [(e.name, e.detail) for e in heard] == [
+        ('e_CC_parameter_set', 'kp: 2.0 -> 3.0 (set from outside)'),
+        ('e_CC_parameter_set', 'kp: 3.0 -> 5.0 (configuration stiff)')]
+
+
+def test_a_dump_becomes_the_named_configuration_that_sets_it():
+    dump = {
+        '/app/itasc/ApproachObject/CC': {'ros__parameters': {
+            'kind': 'p', 'kp': 2.0, 'ki': 0.0, 'kd': 0.0, 'max_output': float('inf'), 'task': 'ApproachObject',
+            'use_sim_time': False}},
+        '/app/itasc/ApproachObject/Rows': {'ros__parameters': {'weights': [1.0, 0.5], 'priority': 1, 'task': 'x'}},
+        '/app/itasc/tracking_error': {'ros__parameters': {'condition': 'above', 'threshold': 0.05}},
+    }
+    assert configuration_of(dump) == {
+        'ApproachObject': {'controller': {'kp': 2.0, 'ki': 0.0, 'kd': 0.0}, 'weights': [1.0, 0.5], 'priority': 1},
+        'tracking_error': {'threshold': 0.05}}
+    with pytest.raises(ValueError, match='/app/itasc/Solver: a named configuration sets'):
+        configuration_of({'/app/itasc/Solver': {'ros__parameters': {'kind': 'qp', 'damping': 0.1}}})
