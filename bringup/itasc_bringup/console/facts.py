@@ -6,6 +6,10 @@ sub-FSM with the time of each transition, each Task's error (an equality Task) o
 against its bounds (an inequality Task: ``output[0]`` against ``d_min``/``d_max``), the Solver's
 status, and the Timer's tick times. It holds no ROS objects: :mod:`.watch` feeds it.
 
+Its memory does not grow with the length of the run: per Task it keeps the figures the summary
+reports, updated at each tick, and the latest values the live view draws; tick and solve times are
+a :class:`~.distribution.Distribution`.
+
 Times of the sub-FSM path are the Coordinators' own stamps, counted from the first composite that
 reached ``Active.Run.Running``; a Task's time to converge is counted in its own tick stamps from
 its first tick. A recording holds the same messages, so the same figures follow from it.
@@ -14,16 +18,20 @@ its first tick. A recording holds the same messages, so the same figures follow 
 from __future__ import annotations
 
 import math
-from array import array
+from collections import deque
 from dataclasses import dataclass, field
 
-__all__ = ['TaskSpec', 'TaskTrace', 'Transition', 'RunFacts', 'task_specs', 'settling_time', 'SETTLING_BAND']
+from .distribution import Distribution
+
+__all__ = ['TaskSpec', 'TaskTrace', 'Transition', 'RunFacts', 'Settling', 'task_specs', 'SETTLING_BAND', 'RECENT']
 
 #: A Task has converged once its error stays within this fraction of its peak (2 % settling time).
 SETTLING_BAND = 0.02
 TASK_STATE = 'itasc_msgs/msg/TaskState'
 SOLVER_STATUS = 'itasc_msgs/msg/SolverStatus'
 RUNNING = 'Active.Run.Running'
+#: How many of the latest ticks (and of an inequality Task's distances) the live view draws from.
+RECENT = 2000
 
 
 @dataclass(frozen=True)
@@ -58,59 +66,74 @@ def task_specs(model, *, namespace: str) -> list[TaskSpec]:
     return specs
 
 
-def settling_time(t, values, *, band: float = SETTLING_BAND) -> float | None:
-    """Seconds from ``t[0]`` until ``values`` stay within ``band`` of their peak; None if the last
-    value is still outside (not converged), 0 if nothing ever left the band."""
-    if not len(values):
-        return None
-    limit = band * max(values)
-    outside = [i for i, v in enumerate(values) if v > limit]
-    if not outside:
-        return 0.0
-    if outside[-1] == len(values) - 1:
-        return None
-    return t[outside[-1] + 1] - t[0]
+class Settling:
+    """A Task's settling time, updated per tick: the seconds from its first tick until its error
+    stays within ``band`` of its peak so far; None while the latest value is still outside, 0 if
+    nothing ever left the band.
+
+    Only the latest value outside the band matters, and a new peak is itself outside it (the band
+    is a fraction of the peak), so no earlier value is needed when the peak grows.
+    """
+
+    def __init__(self, *, band: float = SETTLING_BAND) -> None:
+        self.band = band
+        self._first: float | None = None
+        self._peak = -math.inf
+        self._outside = False        # some value left the band
+        self._latest_outside = False  # ... and it is the latest value
+        self._back_at: float | None = None  # the stamp of the value after the latest outside one
+
+    def add(self, t: float, value: float) -> None:
+        if self._first is None:
+            self._first = t
+        if self._latest_outside:
+            self._back_at, self._latest_outside = t, False
+        self._peak = max(self._peak, value)
+        if value > self.band * self._peak:
+            self._outside = self._latest_outside = True
+
+    @property
+    def after(self) -> float | None:
+        if self._first is None or self._latest_outside:
+            return None
+        return self._back_at - self._first if self._outside and self._back_at is not None else 0.0
 
 
 @dataclass
 class TaskTrace:
-    """The ticks of one Task: stamp, error norm and (inequality) distance ``output[0]``."""
+    """What one Task's ticks showed: how many, its latest and peak error norm, its settling time,
+    and for an inequality its latest distance ``output[0]``, its smallest margin to the bounds and
+    its latest :data:`RECENT` distances."""
 
     spec: TaskSpec
-    t: array = field(default_factory=lambda: array('d'))
-    error: array = field(default_factory=lambda: array('d'))
-    distance: array = field(default_factory=lambda: array('d'))
+    ticks: int = 0
+    final_error: float | None = None
+    peak_error: float = 0.0
+    final_distance: float | None = None
+    min_margin: float | None = None
+    recent_distance: deque = field(default_factory=lambda: deque(maxlen=RECENT))
+    settling: Settling = field(default_factory=Settling)
 
     def add(self, sample) -> None:
         """One tick of the Task (an ``itasc_msgs/TaskState`` sample)."""
-        self.t.append(sample.t)
-        self.error.append(sample.error_norm)
+        self.ticks += 1
+        self.final_error = sample.error_norm
+        self.peak_error = max(self.peak_error, sample.error_norm)
+        self.settling.add(sample.t, sample.error_norm)
         if self.spec.inequality and len(sample.output):
-            self.distance.append(sample.output[0])
+            distance = float(sample.output[0])
+            self.final_distance = distance
+            self.recent_distance.append(distance)
+            margin = self.margin(distance)
+            self.min_margin = margin if self.min_margin is None else min(self.min_margin, margin)
 
     def margin(self, distance: float) -> float:
         """How far ``distance`` is inside the bounds (negative: violated)."""
         return min(distance - self.spec.lower, self.spec.upper - distance)
 
     @property
-    def final_error(self) -> float | None:
-        return self.error[-1] if self.error else None
-
-    @property
-    def final_distance(self) -> float | None:
-        return self.distance[-1] if self.distance else None
-
-    @property
-    def min_margin(self) -> float | None:
-        return min(map(self.margin, self.distance)) if self.distance else None
-
-    @property
     def converged_after(self) -> float | None:
-        return None if self.spec.inequality else settling_time(self.t, self.error)
-
-    @property
-    def peak_error(self) -> float:
-        return max(self.error, default=0.0)
+        return None if self.spec.inequality else self.settling.after
 
 
 @dataclass(frozen=True)
@@ -134,8 +157,9 @@ class RunFacts:
         self.tasks: dict[str, TaskTrace] = {spec.name: TaskTrace(spec) for spec in tasks}
         self.solver_status = ''
         self.running_since: float | None = None   # stamp of the first composite in Running
-        self.tick_durations = array('d')
-        self.solve_times = array('d')
+        self.ticks = Distribution()                  # the Timer's tick durations (s)
+        self.recent_ticks: deque = deque(maxlen=RECENT)
+        self.solve_times = Distribution()            # the Solver's solve times (s)
         self._last_tick = -math.inf
         self._tick_span: list[float] = []          # first and last tick (monotonic)
 
@@ -155,7 +179,7 @@ class RunFacts:
 
     def on_solver(self, msg) -> None:
         self.solver_status = msg.status
-        self.solve_times.append(msg.solve_time)
+        self.solve_times.add(msg.solve_time)
 
     def on_ticks(self, stamps, durations) -> None:
         """The Timer's latest ticks (monotonic start, duration; oldest first): those not seen yet
@@ -167,7 +191,9 @@ class RunFacts:
             new.append((stamp, duration))
         if new:
             new.reverse()
-            self.tick_durations.extend(d for _, d in new)
+            for _, duration in new:
+                self.ticks.add(duration)
+                self.recent_ticks.append(duration)
             self._last_tick = new[-1][0]
             self._tick_span = [self._tick_span[0] if self._tick_span else new[0][0], new[-1][0]]
 
@@ -188,22 +214,15 @@ class RunFacts:
         return {name: path for name, path in out.items() if path}
 
     def achieved_rate(self) -> float:
-        n = len(self.tick_durations)
+        n = self.ticks.count
         span = self._tick_span[1] - self._tick_span[0] if self._tick_span else 0.0
         return (n - 1) / span if n > 1 and span > 0 else 0.0
 
     def tick_percentile(self, q: float) -> float | None:
         """The ``q``-th percentile of the tick times (s), nearest rank; None without ticks."""
-        return _percentile(self.tick_durations, q)
+        return self.ticks.percentile(q)
 
     def solve_percentile(self, q: float) -> float | None:
         """The ``q``-th percentile of the Solver's solve times (s); None without any."""
-        return _percentile(self.solve_times, q)
+        return self.solve_times.percentile(q)
 
-
-def _percentile(values, q: float) -> float | None:
-    """The ``q``-th percentile of ``values``, nearest rank; None if there are none."""
-    if not values:
-        return None
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]

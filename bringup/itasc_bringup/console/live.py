@@ -28,8 +28,6 @@ from .trace import TraceFile
 __all__ = ['LiveConsole']
 
 PHASE_STYLES = {'Configure': 'cyan', 'Start': 'green', 'Run': 'bold green', 'Stop': 'yellow', 'Safety': 'bold red'}
-#: Live percentiles over the latest ticks only (the summary uses all of them).
-LIVE_TICKS = 1000
 
 
 def _short(state: str) -> str:
@@ -138,7 +136,7 @@ class LiveConsole:
             bar: ProgressBar | Text
             if trace.spec.inequality and trace.final_distance is not None:
                 margin = trace.margin(trace.final_distance)
-                widest = max(trace.margin(d) for d in trace.distance[-2000:]) or 1.0
+                widest = max(trace.margin(d) for d in trace.recent_distance) or 1.0
                 bar = ProgressBar(total=max(widest, 1e-9), completed=max(margin, 0.0), width=20,
                                   complete_style='red' if margin <= 0 else 'yellow')
             elif trace.final_error is not None:
@@ -149,7 +147,7 @@ class LiveConsole:
         return table
 
     def _timing(self) -> Text:
-        recent = sorted(self._facts.tick_durations[-LIVE_TICKS:])
+        recent = sorted(self._facts.recent_ticks)  # live: the latest ticks only (the summary: all)
         ticks = (f'tick p50 {recent[len(recent) // 2] * 1e3:.2f} ms, p99 '
                  f'{recent[min(len(recent) - 1, int(0.99 * len(recent)))] * 1e3:.2f} ms') if recent else 'no ticks yet'
         solver = f', solver {self._facts.solver_status}' if self._facts.solver_status else ''

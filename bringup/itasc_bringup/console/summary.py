@@ -31,7 +31,7 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
     tasks = []
     for name, trace_ in facts.tasks.items():
         entry: dict[str, Any] = {'task': name, 'kind': 'inequality' if trace_.spec.inequality else 'equality',
-                                 'ticks': len(trace_.t), 'final_error': _finite(trace_.final_error)}
+                                 'ticks': trace_.ticks, 'final_error': _finite(trace_.final_error)}
         if trace_.spec.inequality:
             entry.update(d_min=_finite(trace_.spec.lower), d_max=_finite(trace_.spec.upper),
                          final_distance=_finite(trace_.final_distance), min_margin=_finite(trace_.min_margin))
@@ -50,7 +50,7 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
                   for composite, path in facts.paths().items()},  # parents first
         'tasks': tasks,
         'rate': {'target': target_rate, 'achieved': facts.achieved_rate(),
-                 'tick_p50': p50, 'tick_p99': p99, 'ticks': len(facts.tick_durations),
+                 'tick_p50': p50, 'tick_p99': p99, 'ticks': facts.ticks.count,
                  'solve_p50': facts.solve_percentile(50)},
         'solver_status': facts.solver_status or None,
         'recording': recording,

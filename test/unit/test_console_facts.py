@@ -1,0 +1,91 @@
+"""The console's run facts (bringup/itasc_bringup/console/facts.py, distribution.py): the figures the
+summary reports, from memory that does not grow with the length of the run."""
+
+from __future__ import annotations
+
+import math
+import tracemalloc
+from types import SimpleNamespace
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from itasc_bringup.console.distribution import Distribution
+from itasc_bringup.console.facts import SETTLING_BAND, RunFacts, Settling, TaskSpec
+
+
+def settling_by_definition(t, values, band=SETTLING_BAND):
+    """Seconds from t[0] until values stay within band of their peak (None: not yet; 0: never left)."""
+    if not values:
+        return None
+    outside = [i for i, v in enumerate(values) if v > band * max(values)]
+    if not outside:
+        return 0.0
+    return None if outside[-1] == len(values) - 1 else t[outside[-1] + 1] - t[0]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.one_of(st.floats(0, 10), st.sampled_from([0.0, 1.0, 0.02, 0.0200001])), max_size=60))
+def test_the_settling_time_per_tick_is_the_settling_time_of_the_whole_run(values):
+    t = [0.5 + 0.01 * i for i in range(len(values))]
+    settling = Settling()
+    for stamp, value in zip(t, values):
+        settling.add(stamp, value)
+    expected = settling_by_definition(t, values)
+    if expected is None:
+        assert settling.after is None
+    else:
+        assert settling.after is not None and math.isclose(settling.after, expected, abs_tol=1e-12)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(1e-6, 1.0), min_size=1, max_size=500), st.sampled_from([1, 50, 90, 99, 100]))
+def test_a_percentile_is_the_nearest_rank_to_within_a_thousandth(values, q):
+    distribution = Distribution()
+    for value in values:
+        distribution.add(value)
+    ordered = sorted(values)
+    exact = ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]
+    assert distribution.count == len(values)
+    assert math.isclose(distribution.percentile(q), exact, rel_tol=1e-3)
+
+
+def test_durations_that_are_not_finite_are_not_counted():
+    distribution = Distribution()
+    assert distribution.percentile(50) is None
+    for value in (0.001, math.nan, math.inf, 0.003):
+        distribution.add(value)
+    assert distribution.count == 2 and distribution.percentile(100) == 0.003
+
+
+def _tick(facts: RunFacts, k: int) -> None:
+    t = 1e-3 * k
+    error = 0.5 * math.exp(-t) + 1e-4 * math.sin(k)
+    facts.on_task('Approach', SimpleNamespace(t=t, error_norm=error, output=np.array([error])))
+    facts.on_task('Avoid', SimpleNamespace(t=t, error_norm=0.0, output=np.array([0.2 + 0.05 * math.sin(t)])))
+    facts.on_solver(SimpleNamespace(status='optimal', solve_time=1e-4 * (1 + (k % 7))))
+    facts.on_ticks([t], [2e-4 * (1 + (k % 5))])
+
+
+def test_a_long_run_does_not_grow_the_facts_and_keeps_its_figures():
+    """An hour at 1 kHz is 3.6 million ticks: the facts must not keep them all."""
+    facts = RunFacts(composites={'app': '/app'},
+                     tasks=[TaskSpec('Approach', '/a'), TaskSpec('Avoid', '/b', inequality=True, lower=0.15)])
+    for k in range(5000):
+        _tick(facts, k)
+    tracemalloc.start()
+    before = tracemalloc.get_traced_memory()[0]
+    for k in range(5000, 105_000):
+        _tick(facts, k)
+    grown = tracemalloc.get_traced_memory()[0] - before
+    tracemalloc.stop()
+    assert grown < 20_000, f'{grown} bytes more after 100,000 more ticks'
+    approach, avoid = facts.tasks['Approach'], facts.tasks['Avoid']
+    assert approach.ticks == avoid.ticks == facts.ticks.count == 105_000
+    assert 0.4 < approach.peak_error < 0.6 and approach.final_error < 1e-3
+    assert 3.0 < approach.converged_after < 5.0  # e^-t below 2 % of 0.5 after ln(50) ~ 3.9 s
+    assert math.isclose(avoid.min_margin, 0.2 - 0.05 - 0.15, abs_tol=1e-6) and len(avoid.recent_distance) == 2000
+    assert math.isclose(facts.tick_percentile(50), 6e-4, rel_tol=1e-3)
+    assert math.isclose(facts.solve_percentile(100), 7e-4, rel_tol=1e-3)
+    assert math.isclose(facts.achieved_rate(), 1000.0, rel_tol=1e-6)
