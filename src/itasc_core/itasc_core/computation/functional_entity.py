@@ -40,7 +40,7 @@ class FunctionalEntity(Entity):
     cause: str = 'set from outside'
 
     def __init__(self, name: str, *, composite: CompositeContext, parameters: Mapping[str, Any] | None = None) -> None:
-        super().__init__(name, composite=composite)
+        super().__init__(name, composite=composite, parameter_services=bool(self.Parameters.model_fields))
         self.inputs: dict[str, InputPort] = {}
         self.outputs: dict[str, OutputPort] = {}
         try:

@@ -32,6 +32,9 @@ __all__ = ['Coordinator', 'STARTUP_TIMEOUT']
 #: composite process to come up on a loaded machine, short enough that a start that cannot
 #: succeed ends in bounded time.
 STARTUP_TIMEOUT = 10.0
+#: A gap between two updates longer than this is time the process spent elsewhere (deploying or
+#: configuring the entities of other composites in the same process): no time a state waited.
+STALL = 0.1
 
 
 class Coordinator(Entity):
@@ -77,7 +80,7 @@ class Coordinator(Entity):
             accept=self._accepts_parent, on_gap=self._gap)
         self._notifications = {event(composite.name, n) for n in NOTIFICATIONS}
         self._startup_timeout = startup_timeout
-        self._entered_at = time.monotonic()
+        self._entered_at = self._updated_at = time.monotonic()
         self._update_timer = self.create_timer(1.0 / update_rate, self.update)
 
     @property
@@ -117,7 +120,11 @@ class Coordinator(Entity):
         if self._parent_events is not None:
             for msg in self._parent_events.drain():
                 self._process_parent(msg)
-        if self.fsm.starting_up and time.monotonic() - self._entered_at > self._startup_timeout:
+        now = time.monotonic()
+        if now - self._updated_at > STALL:
+            self._entered_at += now - self._updated_at
+        self._updated_at = now
+        if self.fsm.starting_up and now - self._entered_at > self._startup_timeout:
             waiting = self.fsm.waiting_for()
             self._raiser.raise_event(event(self.composite.name, TIMEOUT), priority=True,
                                      detail=f'{self.state} waited {self._startup_timeout:g} s for {waiting}')
