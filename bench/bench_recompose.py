@@ -16,7 +16,6 @@ Run: python bench/bench_recompose.py [--rounds 5] [--rate 100] [--deploy single|
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import platform
 import subprocess
@@ -26,7 +25,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 STEPS = [('itasc', 'alone'), ('itasc', 'back'), ('itasc/ApproachObject', 'soft'), ('itasc/ApproachObject', 'stiff'),
          ('itasc', 'least_squares'), ('itasc', 'quadratic')]
@@ -34,7 +32,7 @@ STEPS = [('itasc', 'alone'), ('itasc', 'back'), ('itasc/ApproachObject', 'soft')
 
 def model(directory: Path) -> Path:
     """pick_and_retreat's composition model with steps that undo each other (±inf written ±1e300)."""
-    from itasc_bringup.apps import load_composition
+    from itasc_bringup.apps import load_composition, write_composition
 
     data = load_composition('pick_and_retreat').model_dump(by_alias=True, exclude_defaults=True)
     program = next(e for e in data['entities'] if e['name'] == 'itasc')
@@ -51,18 +49,7 @@ def model(directory: Path) -> Path:
     task['composition_steps'] = {
         'soft': {'swap': [{**controller, 'parameters': {**controller['parameters'], 'kind': 'p', 'kp': 1.0}}]},
         'stiff': {'swap': [controller]}}
-
-    def finite(value):
-        if isinstance(value, float) and math.isinf(value):
-            return math.copysign(1e300, value)
-        if isinstance(value, list):
-            return [finite(v) for v in value]
-        if isinstance(value, dict):
-            return {k: finite(v) for k, v in value.items()}
-        return value
-    path = directory / 'pick_and_retreat.yaml'
-    path.write_text(yaml.safe_dump({'composite': finite(data)}, sort_keys=False))
-    return path
+    return write_composition(data, directory / 'pick_and_retreat.yaml')
 
 
 def compose(node, executor, service: str, step: str, timeout: float = 60.0):

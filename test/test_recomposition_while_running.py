@@ -52,7 +52,7 @@ def model_with_a_step_that_does_not_fit(tmp_path: Path) -> Path:
     """The composition model of pick_and_retreat, written out, with one more step of ApproachObject:
     a controller of another Task (its ports carry ``Output(AvoidObstacle)``). Infinite parameter
     values are written as ±1e300 (a model file holds finite numbers only)."""
-    from itasc_bringup.apps import load_composition
+    from itasc_bringup.apps import load_composition, write_composition
 
     data = load_composition('pick_and_retreat').model_dump(by_alias=True, exclude_defaults=True)
     program = next(e for e in data['entities'] if e['name'] == 'itasc')
@@ -60,18 +60,7 @@ def model_with_a_step_that_does_not_fit(tmp_path: Path) -> Path:
     controller = next(e for e in task['entities'] if e['name'] == 'CC')
     task['composition_steps']['other_task'] = {'swap': [
         {**controller, 'parameters': {**controller['parameters'], 'task': 'AvoidObstacle'}}]}
-
-    def finite(value):
-        if isinstance(value, float) and math.isinf(value):
-            return math.copysign(1e300, value)
-        if isinstance(value, list):
-            return [finite(v) for v in value]
-        if isinstance(value, dict):
-            return {k: finite(v) for k, v in value.items()}
-        return value
-    path = tmp_path / 'pick_and_retreat.yaml'
-    path.write_text(yaml.safe_dump({'composite': finite(data)}, sort_keys=False))
-    return path
+    return write_composition(data, tmp_path / 'pick_and_retreat.yaml')
 
 
 def compose(composite: str, step: str) -> Compose.Response:

@@ -11,7 +11,11 @@ entity kinds, existing ports that agree on their metadata). Either way, a wrong 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 from pydantic import ValidationError
 from itasc_core.composition.checks import check_composite
@@ -22,7 +26,7 @@ from .model import to_composition
 from .model.load import KEY, application_of
 from .model.locations import config_dirs, include_roots
 
-__all__ = ['resolve_app', 'load_composition', 'check_model', 'known_apps']
+__all__ = ['resolve_app', 'load_composition', 'write_composition', 'check_model', 'known_apps']
 
 
 def known_apps() -> list[str]:
@@ -63,6 +67,22 @@ def load_composition(app: str) -> CompositeModel:
         raise ModelError(str(path), '', f'cannot be loaded: {type(err).__name__}') from None
     raise ModelError(str(path), '', "expected a top-level 'application' (iTaSC application model) or "
                      "'composite' (composition model)")
+
+
+def write_composition(data: dict[str, Any], path: Path) -> Path:
+    """Write a composition model (as ``CompositeModel.model_dump(by_alias=True)`` gives it) to the
+    model file ``path`` (``composite:``); infinite values are written as ±1e300, since a model file
+    holds finite numbers only."""
+    def finite(value: Any) -> Any:
+        if isinstance(value, float) and math.isinf(value):
+            return math.copysign(1e300, value)
+        if isinstance(value, list):
+            return [finite(v) for v in value]
+        if isinstance(value, dict):
+            return {k: finite(v) for k, v in value.items()}
+        return value
+    path.write_text(yaml.safe_dump({'composite': finite(data)}, sort_keys=False))
+    return path
 
 
 def check_model(path: str | Path) -> ModelError | None:

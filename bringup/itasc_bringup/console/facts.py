@@ -78,7 +78,7 @@ class Settling:
     def __init__(self, *, band: float = SETTLING_BAND) -> None:
         self.band = band
         self._first: float | None = None
-        self._peak = -math.inf
+        self.peak = -math.inf
         self._outside = False        # some value left the band
         self._latest_outside = False  # ... and it is the latest value
         self._back_at: float | None = None  # the stamp of the value after the latest outside one
@@ -88,8 +88,8 @@ class Settling:
             self._first = t
         if self._latest_outside:
             self._back_at, self._latest_outside = t, False
-        self._peak = max(self._peak, value)
-        if value > self.band * self._peak:
+        self.peak = max(self.peak, value)
+        if value > self.band * self.peak:
             self._outside = self._latest_outside = True
 
     @property
@@ -108,7 +108,6 @@ class TaskTrace:
     spec: TaskSpec
     ticks: int = 0
     final_error: float | None = None
-    peak_error: float = 0.0
     final_distance: float | None = None
     min_margin: float | None = None
     recent_distance: deque = field(default_factory=lambda: deque(maxlen=RECENT))
@@ -118,7 +117,6 @@ class TaskTrace:
         """One tick of the Task (an ``itasc_msgs/TaskState`` sample)."""
         self.ticks += 1
         self.final_error = sample.error_norm
-        self.peak_error = max(self.peak_error, sample.error_norm)
         self.settling.add(sample.t, sample.error_norm)
         if self.spec.inequality and len(sample.output):
             distance = float(sample.output[0])
@@ -130,6 +128,10 @@ class TaskTrace:
     def margin(self, distance: float) -> float:
         """How far ``distance`` is inside the bounds (negative: violated)."""
         return min(distance - self.spec.lower, self.spec.upper - distance)
+
+    @property
+    def peak_error(self) -> float:
+        return max(self.settling.peak, 0.0)
 
     @property
     def converged_after(self) -> float | None:
