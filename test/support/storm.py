@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import signal
+import struct
 import sys
 import threading
 import time
@@ -87,17 +88,47 @@ def _socket_drops(pid: int) -> int:
     return sum(int(row[-1]) for row in rows if row[9] in inodes)
 
 
+class StormRaiser:
+    """Raises ``name`` from one source as fast as DDS takes it: one ``itasc_msgs/Event`` serialised
+    up front, and per event only its ``seq`` and ``stamp`` written into a copy of the bytes before
+    ``publish`` of the serialised message (an ``EventRaiser`` builds and converts a message per
+    event, about half of what a 2-core machine has to spare at 10,000/s). The same events as an
+    ``EventRaiser`` of that source would raise: seq from 1, stamped when raised."""
+
+    def __init__(self, node, *, topic: str, source: str, name: str) -> None:
+        from rclpy.serialization import serialize_message
+
+        from itasc_core.communication.qos import EVENT_QOS
+        from itasc_msgs.msg import Event
+        self.publisher = node.create_publisher(Event, topic, EVENT_QOS)
+        self._clock = node.get_clock()
+        # where seq and stamp lie in the CDR bytes: found by their values, not by layout rules
+        marked = Event(source=source, name=name, seq=0x0102030405060708)
+        marked.stamp.sec, marked.stamp.nanosec = 0x11223344, 0x55667788
+        self._template = serialize_message(marked)
+        self._seq_at = self._template.index(struct.pack('<Q', marked.seq))
+        self._stamp_at = self._template.index(struct.pack('<iI', marked.stamp.sec, marked.stamp.nanosec))
+        self.seq = 0
+
+    def raise_event(self) -> None:
+        self.seq += 1
+        sec, nanosec = divmod(self._clock.now().nanoseconds, 1_000_000_000)
+        data = bytearray(self._template)
+        struct.pack_into('<Q', data, self._seq_at, self.seq)
+        struct.pack_into('<iI', data, self._stamp_at, sec, nanosec)
+        self.publisher.publish(bytes(data))
+
+
 def storm(mcap: Path, *, rate: int, seconds: float = 10.0, sources: int = 2,
           ack_timeout: float = 120.0) -> StormFigures:
     from rclpy.duration import Duration
-
-    from itasc_core.communication.events import EventRaiser
 
     with Spawned([*BOOTSTRAP, 'pattern_demo', '--record', str(mcap)]) as app:
         app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
         pid = app.process.pid
         with ros_node('storm') as (node, executor):
-            raisers = [EventRaiser(node, topic=TOPIC, source=f'/storm/source{i}') for i in range(sources)]
+            raisers = [StormRaiser(node, topic=TOPIC, source=f'/storm/source{i}', name='e_storm')
+                       for i in range(sources)]
 
             def matched() -> bool:  # every reader of the topic (the process's event hub, the recorder)
                 readers = node.count_subscribers(TOPIC)
@@ -113,7 +144,7 @@ def storm(mcap: Path, *, rate: int, seconds: float = 10.0, sources: int = 2,
             while sent < total:
                 due = min(total, int((time.monotonic() - start) * rate) + 1)
                 while sent < due:
-                    raisers[sent % sources].raise_event('e_storm', detail=str(sent))
+                    raisers[sent % sources].raise_event()
                     sent += 1
                 rss_peak = max(rss_peak, _rss_mb(pid))
                 time.sleep(0.002)
