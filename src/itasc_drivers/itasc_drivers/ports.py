@@ -7,7 +7,7 @@ from sensor_msgs.msg import JointState
 
 from itasc_core.communication.ports import PortSpec
 from itasc_core.itasc.entities.robot_entity import joint_positions
-from itasc_core.itasc.entities.solver_entity import PROGRAM_VELOCITIES
+from itasc_core.itasc.entities.messages import PROGRAM_VELOCITIES
 
 __all__ = ['driver_ports']
 

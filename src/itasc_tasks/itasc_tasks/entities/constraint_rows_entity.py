@@ -19,7 +19,7 @@ from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import ParameterModel
 from itasc_core.itasc.entities.messages import RowsSample, TaskStateSample
-from itasc_core.itasc.entities.solver_entity import ROWS_SEMANTICS
+from itasc_core.itasc.entities.messages import ROWS_SEMANTICS
 
 from .common import task_port
 

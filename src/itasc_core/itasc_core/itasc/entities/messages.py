@@ -28,7 +28,12 @@ from itasc_msgs.msg import ConstraintRows, Control, Features, Setpoint, SolverSt
 from ...communication.samples import JointSample, Sample, floats, sample_of, seconds, stamp
 
 __all__ = ['FeaturesSample', 'SetpointSample', 'ControlSample', 'RowsSample', 'TaskStateSample',
-           'SolverStatusSample', 'JointSample', 'stamp', 'seconds']
+           'SolverStatusSample', 'JointSample', 'stamp', 'seconds', 'PROGRAM_VELOCITIES', 'ROWS_SEMANTICS']
+
+#: What the Solver commands (its ``command`` output, the Drivers' input).
+PROGRAM_VELOCITIES = 'JointVelocities(program)'
+#: What every Task's Rows write and the Solver reads.
+ROWS_SEMANTICS = f'ConstraintRows({PROGRAM_VELOCITIES})'
 
 
 @sample_of(Features)

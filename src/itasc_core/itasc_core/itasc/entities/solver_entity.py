@@ -34,13 +34,10 @@ from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
 from ...computation.parameters import ParameterModel
 from ..solver import ConstraintRows, QpSolver, WdlsSolver
-from .messages import JointSample, RowsSample, SolverStatusSample
+from .messages import PROGRAM_VELOCITIES, ROWS_SEMANTICS, JointSample, RowsSample, SolverStatusSample
 from .scene_entity import PROGRAM_JOINTS
 
-__all__ = ['SolverEntity', 'SolverSettings', 'PROGRAM_VELOCITIES', 'ROWS_SEMANTICS']
-
-PROGRAM_VELOCITIES = 'JointVelocities(program)'
-ROWS_SEMANTICS = f'ConstraintRows({PROGRAM_VELOCITIES})'
+__all__ = ['SolverEntity', 'SolverSettings']
 
 
 class SolverSettings(ParameterModel):

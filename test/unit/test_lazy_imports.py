@@ -1,0 +1,32 @@
+"""What a process that hosts only Tasks imports (``--deploy per-composite``): the Task entities and
+the composite host, but not the Solvers' qpsolvers and scipy.sparse (itasc_core.lazy); the
+re-exported names still resolve, and an unknown one is an AttributeError."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+
+def _imported(code: str) -> str:
+    return subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True).stdout
+
+
+def test_a_process_hosting_only_tasks_does_not_load_the_solvers():
+    out = _imported('import sys\n'
+                    'import itasc_core.composition.host, itasc_tasks.entities, itasc_drivers.ports\n'
+                    'print(sorted(m for m in ("qpsolvers", "scipy.sparse", "itasc_core.itasc.solver") if m in sys.modules))')
+    assert out.strip() == '[]'
+
+
+def test_the_re_exported_names_resolve_on_first_use():
+    from itasc_core.itasc import QpSolver, Scene, se3
+    from itasc_core.itasc.entities import SolverEntity
+    from itasc_core.itasc.solver.qp import QpSolver as Defined
+    assert QpSolver is Defined and callable(se3) and Scene.__name__ == 'Scene'
+    assert SolverEntity.__module__ == 'itasc_core.itasc.entities.solver_entity'
+    import itasc_core.itasc
+    with pytest.raises(AttributeError, match='no attribute'):
+        itasc_core.itasc.NoSuchName  # noqa: B018
