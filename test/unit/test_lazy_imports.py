@@ -17,7 +17,8 @@ def _imported(code: str) -> str:
 def test_a_process_hosting_only_tasks_does_not_load_the_solvers():
     out = _imported('import sys\n'
                     'import itasc_core.composition.host, itasc_tasks.entities, itasc_drivers.ports\n'
-                    'print(sorted(m for m in ("qpsolvers", "scipy.sparse", "itasc_core.itasc.solver") if m in sys.modules))')
+                    'solvers = ("qpsolvers", "scipy.sparse", "itasc_core.itasc.solver")\n'
+                    'print(sorted(m for m in solvers if m in sys.modules))')
     assert out.strip() == '[]'
 
 
