@@ -21,6 +21,7 @@ import platform
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -63,6 +64,8 @@ def compose(node, executor, service: str, step: str, timeout: float = 60.0):
             executor.spin_once(timeout_sec=0.05)
         future = client.call_async(Compose.Request(step=step))
         executor.spin_until_future_complete(future, timeout_sec=timeout)
+        if future.result() is None:
+            raise TimeoutError(f'{service}: step {step!r} not answered within {timeout:.0f} s')
         return future.result()
     finally:
         node.destroy_client(client)
@@ -91,6 +94,8 @@ def main() -> int:
         for line in app.stdout:
             if line.startswith('[state] itasc: Active.Run.Running.wait_for_gripper'):
                 break
+        # keep reading what the bootstrap prints (-v): a full pipe would stop it in the middle of a step
+        threading.Thread(target=lambda: app.stdout.read(), daemon=True).start()
         rclpy.init()
         node = rclpy.create_node('bench_recompose')
         executor = SingleThreadedExecutor()
