@@ -294,3 +294,23 @@ def get_limits() -> list[float]:
 
     solver = load_composition('pick_and_retreat').entity('itasc').entity('Solver')
     return solver.parameters['velocity_limit']
+
+
+def test_a_task_composite_removed_and_added_back_runs_again_in_a_process_of_its_own(tmp_path):
+    """``--deploy per-composite``: the step ``back`` starts a new process for AvoidObstacle soon after
+    ``alone`` stopped the old one (whose endpoints linger a moment in the graph): it is answered,
+    the new process's Task reaches Running, and the application still stops in order."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
+    from bench_recompose import model  # pick_and_retreat with the steps alone (remove) and back (add)
+
+    with Spawned([*BOOTSTRAP, str(model(tmp_path)), '--deploy', 'per-composite', '-v']) as app:
+        app.wait_for_line('[state] itasc: Active.Run.Running.wait_for_gripper', timeout=120)
+        removed = compose(PROGRAM, 'alone')
+        assert removed.success, removed
+        app.wait_for_line('[state] AvoidObstacle: Active.Stop.Stopped.NotifyStopped', timeout=30)
+        added = compose(PROGRAM, 'back')
+        assert added.success, added
+        app.wait_for_line('[state] AvoidObstacle: Active.Run.Running', timeout=30)
+        stop = trigger(f'{ROOT}/coordinator/stop')
+        assert stop.success, stop
+        assert app.finish(timeout=60) == 0, app.output()

@@ -251,16 +251,21 @@ class Composer(Entity):
         """Call ``then`` once the process of every child of ``names`` that has one listens to our
         event topic (its event hub, on behalf of the child's Coordinator) and its Coordinator talks
         on it, so that no command to it can be lost to DDS discovery; ``otherwise(late)`` after
-        ``timeout`` s."""
+        ``timeout`` s. Endpoints already there when this is called are not the new process's: a
+        child composite added back soon after its removal would be seen listening through the
+        endpoints of its old process, which lingers a moment after it stopped."""
         remote = [self.composite.child(name).namespace for name in names if self.children.get(name, 0) is None]
         if not remote:
             then()
             return
         deadline = self.get_clock().now().nanoseconds + int(timeout * 1e9)
         topic = self.composite.events_topic
+        old = {bytes(i.endpoint_gid) for i in (*self.get_subscriptions_info_by_topic(topic),
+                                                *self.get_publishers_info_by_topic(topic))}
 
         def ready(infos, node: str, namespace: str) -> bool:
-            return any(i.node_name == node and i.node_namespace == namespace for i in infos)
+            return any(i.node_name == node and i.node_namespace == namespace and bytes(i.endpoint_gid) not in old
+                       for i in infos)
 
         def poll() -> None:
             subscribers = self.get_subscriptions_info_by_topic(topic)
