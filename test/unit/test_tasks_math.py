@@ -167,6 +167,15 @@ def test_inequality_bound_is_free_inside_the_band_and_pushes_back_beyond_it():
     assert low[0] == pytest.approx(5.0 * 0.05) and high[0] == np.inf
 
 
+def test_an_infinite_bound_stays_no_bound_whatever_the_gain():
+    """kp = 0 (``ros2 param set .../CC kp 0`` on a d_min Task) made 0 * inf = NaN of the open side,
+    and the Solver went to Safety on non-finite rows; an infinite bound is no bound at any gain."""
+    _, low, high, _, _ = inequality_control(np.array([0.3]), lower=0.15, upper=np.inf, kp=0.0)
+    assert low[0] == 0.0 and high[0] == np.inf  # may not come closer, may go away
+    _, low, high, _, _ = inequality_control(np.array([0.3, 0.1]), lower=np.array([-np.inf, 0.0]),
+                                            upper=np.array([0.5, np.inf]), kp=np.array([0.0, 0.0]))
+    assert low[0] == -np.inf and high[1] == np.inf and low[1] == 0.0 and high[0] == 0.0
+
 def test_minimum_jerk_vector_time_and_velocity_bounded():
     sp = MinimumJerkSetpoint([1.0, -2.0], duration=2.0)
     sp.start(np.array([0.0, 0.0]), 1.0)

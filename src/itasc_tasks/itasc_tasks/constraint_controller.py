@@ -70,9 +70,20 @@ def equality_control(controller: ConstraintController, y: np.ndarray, setpoint: 
 def inequality_control(y: np.ndarray, *, lower: np.ndarray | float, upper: np.ndarray | float,
                        kp: float | np.ndarray) -> Control:
     """Keep y within ``[lower, upper]``: ``kp (lower - y) <= ydot <= kp (upper - y)``. Inside the band
-    the setpoint is y itself (no error); beyond it, the nearest bound."""
+    the setpoint is y itself (no error); beyond it, the nearest bound. An infinite bound is no bound
+    at any gain (with ``kp = 0`` it would be 0 * inf = NaN)."""
     setpoint = np.clip(y, lower, upper)
-    return np.zeros(y.shape), kp * (lower - y), kp * (upper - y), setpoint, setpoint - y
+    if isinstance(kp, (int, float)) and kp > 0 or np.all(np.asarray(kp) > 0):
+        low, high = kp * (lower - y), kp * (upper - y)
+    else:
+        low, high = _gained_bound(kp, lower, y), _gained_bound(kp, upper, y)
+    return np.zeros(y.shape), low, high, setpoint, setpoint - y
+
+
+def _gained_bound(kp: float | np.ndarray, bound: np.ndarray | float, y: np.ndarray) -> np.ndarray:
+    """``kp (bound - y)`` where the bound is finite, the bound itself where it is infinite."""
+    infinite = np.isinf(bound)
+    return np.where(infinite, bound, kp * (np.where(infinite, 0.0, bound) - y))
 
 
 def _saturate(out: np.ndarray, limit: float | np.ndarray) -> np.ndarray:
