@@ -64,9 +64,10 @@ def compose(node, executor, service: str, step: str, timeout: float = 60.0):
             executor.spin_once(timeout_sec=0.05)
         future = client.call_async(Compose.Request(step=step))
         executor.spin_until_future_complete(future, timeout_sec=timeout)
-        if future.result() is None:
+        answer = future.result()
+        if answer is None:
             raise TimeoutError(f'{service}: step {step!r} not answered within {timeout:.0f} s')
-        return future.result()
+        return answer
     finally:
         node.destroy_client(client)
 

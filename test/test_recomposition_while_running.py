@@ -37,6 +37,9 @@ from std_srvs.srv import Trigger
 
 from itasc_msgs.srv import Compose
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
+from bench_recompose import model as steps_model  # pick_and_retreat with steps alone and back
+
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
 ROOT = '/pick_and_retreat'
 PROGRAM = f'{ROOT}/itasc'
@@ -300,10 +303,7 @@ def test_a_task_composite_removed_and_added_back_runs_again_in_a_process_of_its_
     """``--deploy per-composite``: the step ``back`` starts a new process for AvoidObstacle soon after
     ``alone`` stopped the old one (whose endpoints linger a moment in the graph): it is answered,
     the new process's Task reaches Running, and the application still stops in order."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
-    from bench_recompose import model  # pick_and_retreat with the steps alone (remove) and back (add)
-
-    with Spawned([*BOOTSTRAP, str(model(tmp_path)), '--deploy', 'per-composite', '-v']) as app:
+    with Spawned([*BOOTSTRAP, str(steps_model(tmp_path)), '--deploy', 'per-composite', '-v']) as app:
         app.wait_for_line('[state] itasc: Active.Run.Running.wait_for_gripper', timeout=120)
         removed = compose(PROGRAM, 'alone')
         assert removed.success, removed
