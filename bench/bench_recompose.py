@@ -48,7 +48,9 @@ def model(directory: Path) -> Path:
         'least_squares': {'swap': [{**solver, 'parameters': {**solver['parameters'], 'kind': 'wdls'}}]},
         'quadratic': {'swap': [solver]}}
     task['composition_steps'] = {
-        'soft': {'swap': [{**controller, 'parameters': {**controller['parameters'], 'kind': 'p', 'kp': 1.0}}]},
+        'soft': {'swap': [{**controller, 'parameters': {
+            key: value for key, value in controller['parameters'].items() if key not in ('ki', 'kd', 'max_integral')}
+            | {'kind': 'p', 'kp': 1.0}}]},
         'stiff': {'swap': [controller]}}
     return write_composition(data, directory / 'pick_and_retreat.yaml')
 

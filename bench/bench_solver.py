@@ -27,7 +27,7 @@ for package in ('itasc_core', 'itasc_tasks'):
 
 import qpsolvers  # noqa: E402
 from itasc_core.itasc import Object, QpSolver, Robot, Scene, WdlsSolver  # noqa: E402
-from itasc_tasks.constraint_controller import PController  # noqa: E402
+from itasc_tasks.controllers import PController  # noqa: E402
 from itasc_tasks.constraint_output import ConstraintOutput  # noqa: E402
 from itasc_tasks.setpoint_generator import FixedSetpoint  # noqa: E402
 from itasc_tasks.task import TaskComputation  # noqa: E402

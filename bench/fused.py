@@ -19,7 +19,7 @@ import numpy as np
 from itasc_core.itasc import Object, QpSolver, Robot, Scene, WdlsSolver
 from itasc_core.itasc.objects import periodic_translation
 from itasc_core.itasc.robot import se3
-from itasc_tasks.constraint_controller import PController, PIDController
+from itasc_tasks.controllers import PController, PIDController
 from itasc_tasks.constraint_output import ConstraintOutput
 from itasc_tasks.setpoint_generator import (FixedSetpoint, MinimumJerkSetpoint, PeriodicSetpoint,
                                             TrapezoidalSetpoint)

@@ -26,5 +26,9 @@ setup(
             'joint = itasc_tasks.task_types.joint:Joint',
             'point_plane = itasc_tasks.task_types.point_plane:PointPlane',
         ],
+        'itasc.controllers': [
+            'p = itasc_tasks.controllers.p:PController',
+            'pid = itasc_tasks.controllers.pid:PIDController',
+        ],
     },
 )

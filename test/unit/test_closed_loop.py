@@ -6,7 +6,7 @@ import pinocchio as pin
 import pytest
 from conftest import PANDA, PANDA_MOBILE
 from itasc_core.itasc import Object, QpSolver, Robot, Scene, WdlsSolver
-from itasc_tasks.constraint_controller import PController
+from itasc_tasks.controllers import PController
 from itasc_tasks.constraint_output import ConstraintOutput
 from itasc_tasks.setpoint_generator import FixedSetpoint
 from itasc_tasks.task import TaskComputation

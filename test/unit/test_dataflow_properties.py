@@ -119,7 +119,7 @@ class Program:
                     e(ConstraintOutputEntity, 'A_CO', task='Approach'),
                     e(SetpointGeneratorEntity, 'A_SPG', task='Approach', kind='topic', topic=f'{ns}/setpoint'),
                     e(ConstraintControllerEntity, 'A_CC', task='Approach', kind=controller, kp=2.0,
-                      ki=1.0 if controller == 'pid' else 0.0, max_output=0.5),
+                      max_output=0.5, **({'ki': 1.0} if controller == 'pid' else {})),
                     e(ConstraintRowsEntity, 'A_Rows', task='Approach', priority=1,
                       weights=[1.0, 1.0, 1.0, 0.5, 0.5, 0.5])]
         self.spg = approach[2]

@@ -162,7 +162,7 @@ application:
         type: cartesian
         o1: target/grasp
         o2: panda/tcp
-        controller: {kp: 2.0}
+        controller: {kind: p, kp: 2.0}
         setpoint: {kind: minimum_jerk, pose: {xyz: [0, 0, 0]}, duration: 2.0}
       - {name: Avoid, type: distance, o1: obstacle, o2: panda/panda_hand, constraint: inequality, d_min: 0.1}
       - {name: Posture, type: joint, joints: [panda_joint1, panda_joint2], priority: 1}
@@ -269,6 +269,13 @@ BROKEN = [
      P + 'configurations.precise.Grasp', "unknown task or monitor 'Grasp'"),
     ('negative gain in a configuration', _set(P + 'configurations.precise.Approach.controller.kp', -5),
      P + 'configurations.precise.Approach.controller.kp', 'greater than or equal to 0'),
+    ('gain the controller has not', _set(P + 'tasks[0].controller', {'kind': 'p', 'kp': 2.0, 'ki': 0.5}),
+     P + 'tasks[0].controller.ki', 'unknown field'),
+    ('unknown controller', _set(P + 'tasks[0].controller', {'kind': 'lqr'}), P + 'tasks[0].controller.kind',
+     "unknown constraint controller 'lqr'"),
+    ('configuration of a gain the controller has not',
+     _set(P + 'configurations.precise.Approach.controller', {'ki': 0.5}),
+     P + 'configurations.precise.Approach.controller.ki', "a p controller, without ki"),
     ('no driver at all', _set('application.drivers', []), 'application.drivers', 'at least 1 item'),
     ('driver of an unknown robot', _set('application.drivers[0].robot', 'kuka'), 'application.drivers[0].robot',
      "unknown robot 'kuka'"),

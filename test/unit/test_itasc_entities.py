@@ -197,7 +197,7 @@ def test_the_task_entities_and_task_computation_compute_the_same_rows(world, tas
     """The same Task as entities (VKC, CO, SPG, CC, Rows, fed by the Scene entity) and as one
     TaskComputation on the Scene entity's Scene: the same rows, tick by tick, the robot moving."""
     from itasc_core.itasc.robot import se3
-    from itasc_tasks.constraint_controller import PIDController
+    from itasc_tasks.controllers import PIDController
     from itasc_tasks.constraint_output import ConstraintOutput
     from itasc_tasks.setpoint_generator import FixedSetpoint, MinimumJerkSetpoint, PeriodicSetpoint
     from itasc_tasks.task import TaskComputation
@@ -483,7 +483,7 @@ def test_parameters_are_declared_typed_described_and_bounded_from_the_entitys_mo
     kp, kind = _call(world, client, client.describe_parameters(['kp', 'kind'])).descriptors
     assert kp.type == ParameterType.PARAMETER_DOUBLE and 'Proportional gain' in kp.description
     assert (kp.floating_point_range[0].from_value, kp.floating_point_range[0].to_value) == (0.0, math.inf)
-    assert kind.type == ParameterType.PARAMETER_STRING and kind.additional_constraints == 'one of p, pid'
+    assert kind.type == ParameterType.PARAMETER_STRING and kind.read_only  # another law: a swap, not a set
     outputs = AsyncParameterClient(world.observer, f'{world.ctx.namespace}/CO')
     assert outputs.wait_for_services(timeout_sec=5.0)
     (described,) = _call(world, outputs, outputs.describe_parameters(['outputs'])).descriptors

@@ -290,8 +290,9 @@ def _nodes(value: Any, loc: tuple = ()):
             yield from _nodes(v, loc + (i,))
 
 
-def _schema_at(loc: tuple) -> tuple[Any, Any]:
-    """The annotation of the application model at ``loc``, and the pydantic field it is (or None)."""
+def _schema_at(loc: tuple, value: Any = None) -> tuple[Any, Any]:
+    """The annotation of the application model at ``loc`` (of the registered kind ``value`` names,
+    where the section has one per kind), and the pydantic field it is (or None)."""
     annotation, field = typing.Dict[str, Application], None
     for part in loc:
         annotation = _unwrap(annotation)
@@ -302,13 +303,22 @@ def _schema_at(loc: tuple) -> tuple[Any, Any]:
         args = typing.get_args(annotation)
         annotation = args[-1] if typing.get_origin(annotation) is dict else args[0]
         field = None
-    return _unwrap(annotation), field
+    return _unwrap(annotation, value), field
 
 
-def _unwrap(annotation: Any) -> Any:
+def _unwrap(annotation: Any, value: Any = None) -> Any:
     while typing.get_origin(annotation) in (typing.Union, typing.Annotated, types.UnionType):
-        annotation = next(a for a in typing.get_args(annotation) if a is not type(None))
+        members = [a for a in typing.get_args(annotation) if a is not type(None)]
+        annotation = next((a for a in members if _names_kind(_unwrap(a), value)), members[0])
     return annotation
+
+
+def _names_kind(model: Any, value: Any) -> bool:
+    """Whether ``value`` (a mapping) is a section of ``model``, by the kinds its Literal fields fix."""
+    if not (isinstance(value, dict) and isinstance(model, type) and issubclass(model, BaseModel)):
+        return False
+    return all(value.get(f.alias or n, f.default) in typing.get_args(f.annotation)
+               for n, f in model.model_fields.items() if typing.get_origin(f.annotation) is typing.Literal)
 
 
 def _locs(data: Any, site: tuple, where) -> list[tuple]:
@@ -337,8 +347,22 @@ def _model_mapping(loc, value, site):
 
 
 def _required(loc, value, site):
-    return _model_mapping(loc, value, site) and any(
-        f.is_required() and (f.alias or n) in value for n, f in _schema_at(site + loc)[0].model_fields.items())
+    return _model_mapping(loc, value, site) and bool(_required_keys(site + loc, value))
+
+
+def _required_keys(loc: tuple, value: dict) -> list[str]:
+    """The keys of ``value`` its section requires (not the kind field of a kind the section takes
+    by default when it is left out)."""
+    keys = []
+    for n, f in _schema_at(loc, value)[0].model_fields.items():
+        key = f.alias or n
+        if not (f.is_required() and key in value):
+            continue
+        rest = {k: v for k, v in value.items() if k != key}
+        other = _schema_at(loc, rest)[0]
+        if not (_names_kind(other, rest) and n in other.model_fields and not other.model_fields[n].is_required()):
+            keys.append(key)
+    return keys
 
 
 def _mapping(loc, value, site):
@@ -418,8 +442,7 @@ def _mutate(config: Path, name: str, kind: str, loc: tuple, extra: int) -> tuple
     elif kind == 'out_of_range':
         bad, expect = (-1 if isinstance(value, int) else -abs(value) - 0.5), at
     elif kind == 'missing_key':
-        model = _schema_at(FILES[name] + loc)[0]
-        key = next(f.alias or n for n, f in model.model_fields.items() if f.is_required() and (f.alias or n) in value)
+        key = _required_keys(FILES[name] + loc, value)[0]
         bad, expect = {k: v for k, v in value.items() if k != key}, format_loc(loc + (key,))
     elif kind == 'extra_key':
         bad, expect = {**value, 'bogus_key': {'bogus': 1}}, format_loc(loc + ('bogus_key',))

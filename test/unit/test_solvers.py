@@ -5,7 +5,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from itasc_core.itasc import ConstraintRows, Object, QpSolver, Scene, WdlsSolver
-from itasc_tasks.constraint_controller import PController
+from itasc_tasks.controllers import PController
 from itasc_tasks.setpoint_generator import FixedSetpoint
 from itasc_tasks.task import TaskComputation
 from itasc_tasks.vkc import CartesianVKC, JointVKC

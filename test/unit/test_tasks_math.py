@@ -6,8 +6,8 @@ import pinocchio as pin
 import pytest
 from conftest import PANDA
 from itasc_core.itasc import Object, Robot, Scene, se3
-from itasc_tasks.constraint_controller import (PController, PIDController, control_error, equality_control,
-                                               inequality_control)
+from itasc_tasks.constraint_controller import control_error, equality_control, inequality_control
+from itasc_tasks.controllers import PController, PIDController
 from itasc_tasks.constraint_output import ConstraintOutput
 from itasc_tasks.setpoint_generator import (FixedSetpoint, MinimumJerkSetpoint, OutputSetpoint, PeriodicSetpoint,
                                             TopicSetpoint, TrapezoidalSetpoint, start_value)

@@ -246,6 +246,14 @@ def _configurations(where: _Where, program: Program) -> None:
                 if not settings.for_task:
                     raise where.error(loc, "a configuration sets a task's controller, weights or priority, "
                                       'not a threshold')
+                gains = type(tasks[target].controller).model_fields
+                changed: dict[str, Any] = {} if settings.controller is None else \
+                    settings.controller.model_dump(exclude_none=True)
+                for key in changed:
+                    if key not in gains:
+                        raise where.error(loc + ('controller', key), f"task '{target}' has a "
+                                          f"{tasks[target].controller.kind} controller, without {key}; its "
+                                          f"gains: {[g for g in gains if g != 'kind']}")
                 m = len(tasks[target].selected)
                 if settings.weights is not None and len(settings.weights) not in (1, m):
                     raise where.error(loc + ('weights',), f'one value, or one per output ({m}), expected '

@@ -14,7 +14,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .schema import ControllerSettings, Settings
+from itasc_tasks.controllers import CONTROLLERS
+
+from .schema import Settings
 
 __all__ = ['configuration_of']
 
@@ -27,8 +29,8 @@ def _finite(value: Any) -> bool:
 
 def _settings(node: str, parameters: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     path = node.strip('/').split('/')
-    if path[-1] == 'CC' and {'kp', 'ki', 'kd'} <= set(parameters):
-        controller = {k: parameters[k] for k in ControllerSettings.model_fields
+    if path[-1] == 'CC' and parameters.get('kind') in CONTROLLERS:
+        controller = {k: parameters[k] for k in CONTROLLERS[parameters['kind']].Parameters.model_fields
                       if k in parameters and _finite(parameters[k])}
         return path[-2], {'controller': controller}
     if path[-1] == 'Rows' and {'weights', 'priority'} <= set(parameters):

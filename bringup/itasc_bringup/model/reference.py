@@ -18,11 +18,8 @@ from typing import Any
 import yaml
 from pydantic import BaseModel
 
-from itasc_core.computation.conditions import CONDITIONS
-from itasc_tasks.task_types import TASK_TYPES
-
 from .load import KEY
-from .schema import Application
+from .schema import KIND_SECTIONS, Application
 
 __all__ = ['json_schema', 'markdown', 'KIND_FIELDS']
 
@@ -48,7 +45,7 @@ def json_schema() -> dict[str, Any]:
     defs = inner.pop('$defs')
     defs['Application'] = inner
     defs['Include'] = _INCLUDE
-    plugins = {f'{kind.__name__}{suffix}' for registry, suffix in ((TASK_TYPES, 'Task'), (CONDITIONS, 'Monitor'))
+    plugins = {f'{kind.__name__}{suffix}' for registry, _, suffix in KIND_SECTIONS
                for name, kind in registry.kinds().items() if name in registry.plugins()}
     defs = {name: _without(d, plugins) for name, d in defs.items() if name not in plugins}
     schema = {
@@ -216,6 +213,8 @@ def _type(prop: dict[str, Any]) -> str:
         return f'[{prop["$ref"].rsplit("/", 1)[-1]}](#{prop["$ref"].rsplit("/", 1)[-1].lower()})'
     if 'anyOf' in prop:
         return ' or '.join(_type(p) for p in prop['anyOf'] if p.get('$ref') != '#/$defs/Include')
+    if 'oneOf' in prop:  # a section per registered kind
+        return ' or '.join(_type(p) for p in prop['oneOf'])
     if 'enum' in prop:
         return ' | '.join(f'`{v}`' for v in prop['enum'])
     if 'const' in prop:
@@ -254,7 +253,10 @@ def _default(model: str, key: str, prop: dict[str, Any]) -> str:
 def _model_field(model: str, key: str):
     from . import schema
     cls = getattr(schema, model, None)
-    fields = getattr(cls, 'model_fields', {})
+    fields = dict(getattr(cls, 'model_fields', {}))
+    for registry, _, suffix in KIND_SECTIONS:  # a registered kind's section: the kind's own fields
+        fields |= next((kind.Parameters.model_fields for kind in registry.kinds().values()
+                        if f'{kind.__name__}{suffix}' == model), {})
     return next((f for name, f in fields.items() if (f.alias or name) == key), None)
 
 

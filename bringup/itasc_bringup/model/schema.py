@@ -27,17 +27,19 @@ from typing import TYPE_CHECKING, Any, Literal
 from itasc_core.composition.model import OutsideEventModel, RunningStateModel, RunningTransitionModel
 from itasc_core.computation.conditions import CONDITIONS
 from itasc_core.computation.parameters import partial
-from itasc_core.kinds import variants
+from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
-from itasc_tasks.entities.constraint_controller_entity import Controller
+from itasc_tasks.controllers import CONTROLLERS
+from itasc_tasks.entities.constraint_controller_entity import ControllerBase
 from itasc_tasks.entities.setpoint_generator_entity import Setpoint
 from itasc_tasks.task_types import TASK_TYPES
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationInfo, field_validator, model_validator
 
-__all__ = ['Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task', 'Controller',
-           'Setpoint', 'Placement', 'ObjectMotion', 'Driver', 'Sensor', 'Solver', 'Monitor', 'ControllerSettings',
-           'Settings', 'State', 'Transition', 'Running', 'TaskSwap', 'CompositionStep', 'TaskBase', 'MonitorBase']
+__all__ = ['KIND_SECTIONS', 'Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task',
+           'Controller', 'Setpoint', 'Placement', 'ObjectMotion', 'Driver', 'Sensor', 'Solver', 'Monitor',
+           'ControllerSettings', 'Settings', 'State', 'Transition', 'Running', 'TaskSwap', 'CompositionStep',
+           'TaskBase', 'MonitorBase']
 
 NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
@@ -50,6 +52,19 @@ class _Model(BaseModel):
 def _as_list(value: Any) -> Any:
     """Accept a scalar where a list is expected (``weights: 1.0``, ``on: e_done``)."""
     return [value] if isinstance(value, (int, float, str)) and not isinstance(value, bool) else value
+
+
+#: The sections whose kind is registered (:mod:`itasc_core.kinds`): the registry, the field that
+#: names the kind and the suffix of each kind's section model.
+KIND_SECTIONS: list[tuple[Registry[Any], str, str]] = [
+    (TASK_TYPES, 'type', 'Task'), (CONDITIONS, 'condition', 'Monitor'), (CONTROLLERS, 'kind', '')]
+
+#: A Constraint Controller: its law and that law's gains (one section per registered controller).
+if TYPE_CHECKING:
+    Controller = ControllerBase
+else:
+    Controller = variants(ControllerBase, CONTROLLERS, field='kind', suffix='')
+_controller = TypeAdapter(Controller)
 
 
 # -- Constraint-based program: robots and objects --------------------------------------------------
@@ -131,7 +146,7 @@ class TaskBase(_Model):
     """The virtual kinematic chain, a registered task type."""
     outputs: list[str] | None = None
     """The features constrained (omitted: all of the chain's)."""
-    controller: Controller = Field(default_factory=Controller)
+    controller: Controller = Field(default_factory=lambda: _controller.validate_python({}))
     """The Constraint Controller."""
     setpoint: Setpoint | None = None
     """The Setpoint Generator (an equality Task)."""
@@ -227,8 +242,10 @@ else:
 
 # -- Configurations, Monitors, Running sub-FSM -------------------------------------------------------------
 
-ControllerSettings = partial(Controller, name='ControllerSettings', exclude=('kind',),
-                             doc='New gains of a Task\'s Constraint Controller (omitted: unchanged).')
+ControllerSettings = partial(*(kind.Parameters for kind in CONTROLLERS.kinds().values()),
+                             name='ControllerSettings',
+                             doc="New gains of a Task's Constraint Controller (omitted: unchanged; only gains its "
+                                 'controller has).')
 
 
 class Settings(_Model):
@@ -236,7 +253,7 @@ class Settings(_Model):
     priorities"): a Task's ``controller`` gains, its row ``weights`` and its ``priority`` level, or
     a Monitor's ``threshold``."""
 
-    controller: ControllerSettings | None = None  # type: ignore[valid-type]  # built from Controller
+    controller: ControllerSettings | None = None  # type: ignore[valid-type]  # built from the controllers' gains
     """New controller gains of the Task."""
     weights: list[float] | None = None
     """New weights of the Task's outputs."""

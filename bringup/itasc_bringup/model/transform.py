@@ -322,8 +322,7 @@ def _setpoint_generator(task: Task, period: float) -> EntityModel:
 def _controller(task: Task, period: float) -> EntityModel:
     c = task.controller
     return EntityModel(name='CC', kind=KINDS['cc'], parameters={
-        'task': task.name, 'tick_period': period, 'kind': c.kind, 'kp': c.kp, 'ki': c.ki, 'kd': c.kd,
-        'max_output': c.max_output,
+        'task': task.name, 'tick_period': period, **c.model_dump(),
         'inequality': task.constraint != 'equality', 'lower': [float(v) for v in task.d_min or [-math.inf]],
         'upper': [float(v) for v in task.d_max or [math.inf]]})
 

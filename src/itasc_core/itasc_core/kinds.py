@@ -5,21 +5,24 @@ A kind is a class that brings everything the project needs of it: its typed para
 (:mod:`.computation.parameters`: the same model is its section of the application model and its
 entity's ROS parameters), its computation, and what the model transform does with it. Kinds are
 registered through Python entry points, one group per category (``itasc.task_types``,
-``itasc.conditions``), the way launch_ros and colcon find their extensions: this project's own
+``itasc.conditions``, ``itasc.controllers``, ``itasc.setpoint_generators``, ``itasc.solvers``,
+``itasc.drivers``), the way launch_ros and colcon find their extensions: this project's own
 kinds in its packages' ``setup.py``, kinds of other packages in theirs. Adding a kind is one new
 file and one registration line. Nothing is imported before a model names the category.
 """
 
 from __future__ import annotations
 
+import functools
 from importlib.metadata import entry_points
 from typing import Annotated, Any, Generic, Literal, TypeVar, Union, cast
 
 from pydantic import BaseModel, Discriminator, Field, Tag, create_model
 
-__all__ = ['Registry', 'UnknownKind', 'variants', 'TAG', 'PROJECT']
+__all__ = ['Registry', 'UnknownKind', 'variants', 'with_kind', 'TAG', 'PROJECT']
 
 K = TypeVar('K')
+M = TypeVar('M', bound=BaseModel)
 #: The distributions of this project (its own kinds; any other is a plugin's).
 PROJECT = ('itasc_core', 'itasc_tasks', 'itasc_drivers', 'itasc_bringup')
 #: How a kind's variant is tagged in a union (``condition=above``): the loader leaves such tags out of
@@ -77,17 +80,40 @@ def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suff
     """The type "``base`` and the parameters of the kind its ``field`` names": a union with one model
     per registered kind (``<Kind><suffix>``: ``base``'s fields, then the kind's, ``field`` fixed to
     the kind's name), told apart by ``field``. This is how a kind's parameter model becomes its
-    section of the application model."""
+    section of the application model. ``field`` may be omitted where ``base`` gives it a default."""
     members = []
+    info = base.model_fields[field]
+    default = None if info.is_required() else info.default
     for name, kind in registry.kinds().items():
         doc = f'{(base.__doc__ or "").strip()}\n\n``{field}: {name}``: {(kind.__doc__ or "").strip()}'
-        fields: dict[str, Any] = {field: (Literal[name], Field(description=base.model_fields[field].description))}
+        fields: dict[str, Any] = {field: (Literal[name], Field(name if name == default else ...,
+                                                              description=info.description))}
         model = create_model(f'{kind.__name__}{suffix}', __base__=(kind.Parameters, base), __doc__=doc, **fields)
         members.append(Annotated[model, Tag(TAG.format(field=field, name=name))])
 
     def tag(value: Any) -> str | None:
-        name = value.get(field) if isinstance(value, dict) else getattr(value, field, None)
+        name = value.get(field, default) if isinstance(value, dict) else getattr(value, field, None)
         return TAG.format(field=field, name=name) if name in registry else None
     return Annotated[Union[tuple(members)], Discriminator(
         tag, custom_error_type='unknown_kind', custom_error_message=f'unknown {registry.what}',
-        custom_error_context={'field': field, 'what': registry.what, 'known': ', '.join(map(repr, registry.names()))})]
+        custom_error_context=_Context(field=field, what=registry.what, known=', '.join(map(repr, registry.names()))))]
+
+
+class _Context(dict[str, int | str | float]):
+    """An error context that can be hashed, as the metadata of a type in ``X | None`` must be."""
+
+    def __hash__(self) -> int:  # type: ignore[override]
+        return hash(tuple(sorted(self.items())))
+
+
+@functools.cache
+def with_kind(base: type[M], registry: Registry[Any], *, field: str, name: str) -> type[M]:
+    """An entity's parameters ``base`` with those of the kind ``name`` (UnknownKind if not
+    registered), ``field`` fixed to it: how an entity whose parameters depend on its kind (a chain's
+    type, a Monitor's condition, a controller's law) validates them. The kind is read-only as a ROS
+    parameter: another kind is another entity (a composition step swaps it)."""
+    kind = registry[name]
+    fields: dict[str, Any] = {field: (Literal[name], Field(name, description=base.model_fields[field].description,
+                                                          frozen=True))}
+    model = create_model(f'{base.__qualname__.replace(".", "_")}_{name}', __base__=(kind.Parameters, base), **fields)
+    return cast(type[M], model)

@@ -17,7 +17,8 @@ import numpy as np
 from itasc_core.itasc.scene import Scene
 from itasc_core.itasc.solver.problem import ConstraintRows
 
-from .constraint_controller import ConstraintController, PController, equality_control, inequality_control
+from .constraint_controller import equality_control, inequality_control
+from .controllers import ConstraintController, PController
 from .constraint_output import ConstraintOutput
 from .setpoint_generator import HoldSetpoint, OutputSetpoint, PointToPoint, SetpointGenerator, start_value
 from .vkc import JointChain, VirtualKinematicChain

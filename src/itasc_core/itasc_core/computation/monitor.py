@@ -12,13 +12,14 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import Field, create_model
+from pydantic import Field
 
 from ..communication.ports import InputPort, PortSpec
 from ..entity import CompositeContext
+from ..kinds import with_kind
 from .conditions import CONDITIONS
 from .functional_entity import FunctionalEntity
 from .parameters import ParameterModel
@@ -70,7 +71,7 @@ class Monitor(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return _with_condition(str(values.get('condition', 'above')))
+        return with_kind(cls.Parameters, CONDITIONS, field='condition', name=str(values.get('condition', 'above')))
 
     def __init__(self, name: str, *, composite: CompositeContext, parameters: dict[str, Any] | None = None,
                  watch: PortSpec | None = None) -> None:
@@ -161,10 +162,3 @@ class Monitor(FunctionalEntity):
             return f'{self.condition_name} on {self.field or "value"}: {values}'
         return None
 
-
-@functools.cache
-def _with_condition(condition: str) -> type[ParameterModel]:
-    """A Monitor's parameters with those of condition ``condition`` (UnknownKind if not registered)."""
-    kind = CONDITIONS[condition]
-    fields: dict[str, Any] = {'condition': (Literal[condition], condition)}
-    return create_model(f'Monitor_{condition}', __base__=(kind.Parameters, Monitor.Parameters), **fields)

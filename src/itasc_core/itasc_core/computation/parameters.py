@@ -7,7 +7,7 @@ template): one pydantic model per entity kind is the single source of
   Monitor's condition, a chain's frames, ...),
 * the ROS 2 parameter declarations: each field is one parameter with its type, its docstring as
   description, its bounds as ``FloatingPointRange``/``IntegerRange`` and its other constraints as
-  ``additional_constraints`` (what ``ros2 param describe`` shows).
+  ``additional_constraints``, a frozen field as read-only (what ``ros2 param describe`` shows).
 
 ROS parameters hold no nested structures: a nested model ``m`` is declared as ``m.<field>``, a
 ``dict[str, Model]`` ``d`` as ``d.<key>.<field>`` (YAML parameter files nest them the same way). A
@@ -93,15 +93,14 @@ def problems(err: Exception) -> str:
     return '; '.join(f"{'.'.join(map(str, e['loc'])) or 'parameters'}: {e['msg']}" for e in err.errors())
 
 
-def partial(model: type[BaseModel], *, name: str, doc: str, exclude: tuple[str, ...] = ()) -> type[BaseModel]:
-    """``model`` with every field but ``exclude`` optional (default None), constraints and docstrings
-    kept: what a named configuration may change of it."""
+def partial(*models: type[BaseModel], name: str, doc: str, exclude: tuple[str, ...] = ()) -> type[BaseModel]:
+    """The fields of ``models`` but ``exclude``, each optional (default None), constraints and
+    docstrings kept: what a named configuration may change of them."""
     fields: dict[str, Any] = {}
-    for key, info in model.model_fields.items():
-        if key in exclude:
-            continue
-        copy = FieldInfo.merge_field_infos(info, default=None)
-        fields[key] = (typing.Optional[info.annotation], copy)
+    for model in models:
+        for key, info in model.model_fields.items():
+            if key not in exclude:
+                fields[key] = (typing.Optional[info.annotation], FieldInfo.merge_field_infos(info, default=None))
     return create_model(name, __base__=ParameterModel, __doc__=doc, **fields)
 
 
@@ -118,9 +117,10 @@ def describe(info: FieldInfo | None, value: Any) -> ParameterDescriptor:
     if info is None:
         return descriptor
     descriptor.description = ' '.join((info.description or '').split())
+    descriptor.read_only = bool(info.frozen)
     low, high, notes = _bounds(info)
     choices = _choices(info.annotation)
-    if choices:
+    if choices and not descriptor.read_only:
         notes.append('one of ' + ', '.join(choices))
     if isinstance(value, bool) or not (low > -math.inf or high < math.inf):
         pass

@@ -1,8 +1,9 @@
 """ConstraintControllerEntity: the Constraint Controller of a Task (paper §4.1 "CC", §4.2,
 §5 "Configuration").
 
-Calls :mod:`itasc_tasks.constraint_controller` (P or PID with feed-forward and saturation). Its
-gains ``kp``, ``ki``, ``kd`` and ``max_output`` are ROS parameters, so a named configuration such
+Runs the registered control law ``kind`` (:mod:`itasc_tasks.controllers`, e.g. P or PID with
+feed-forward and saturation) with the rules of :mod:`itasc_tasks.constraint_controller`. Its
+gains (``kp``, ``max_output``, a PID's ``ki``, ``kd``, ...) are ROS parameters, so a named configuration such
 as ``high_accuracy_control`` applied by the Task's Configurator switches them at run time (the
 integral is kept across a gain switch, cleared when the Task is reactivated).
 
@@ -16,7 +17,8 @@ distance >= d_min): no setpoint, ``inequality_control``. Output ``control``
 from __future__ import annotations
 
 import math
-from typing import Literal
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -25,38 +27,31 @@ from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import ParameterModel
 from itasc_core.itasc.entities.messages import ControlSample
+from itasc_core.kinds import with_kind
 
-from ..constraint_controller import PController, PIDController, equality_control, inequality_control
+from ..constraint_controller import equality_control, inequality_control
+from ..controllers import CONTROLLERS, ConstraintController
 from .common import Ticks, task_port
 
-__all__ = ['ConstraintControllerEntity', 'Controller']
+__all__ = ['ConstraintControllerEntity', 'ControllerBase']
 
 
-class Controller(ParameterModel):
-    """A Constraint Controller: P or PID with feed-forward and saturation (paper §4.1 "CC")."""
+class ControllerBase(ParameterModel):
+    """A Constraint Controller (paper §4.1 "CC"): a registered control law and its gains."""
 
-    kind: Literal['p', 'pid'] = 'pid'
-    """``p``: proportional; ``pid``: proportional, integral, derivative."""
-    kp: float = Field(default=1.0, ge=0)
-    """Proportional gain [1/s]: desired output velocity per unit of error."""
-    ki: float = Field(default=0.0, ge=0)
-    """Integral gain [1/s²]."""
-    kd: float = Field(default=0.0, ge=0)
-    """Derivative gain (dimensionless)."""
-    max_output: float = Field(default=math.inf, gt=0)
-    """Saturation of the desired output velocity [unit of the output per s]; ``.inf``: none."""
+    kind: str = 'pid'
+    """The control law: a registered controller (``p``: proportional; ``pid``: proportional,
+    integral, derivative; its gains follow)."""
 
 
 class ConstraintControllerEntity(FunctionalEntity):
     """Desired output velocity (or its bounds) from the output and its setpoint."""
 
-    class Parameters(Controller):
+    class Parameters(ControllerBase):
         task: str = 'task'
         """The Task it belongs to."""
         tick_period: float = Field(default=0.01, gt=0)
         """The program's nominal tick period [s]."""
-        max_integral: float = Field(default=math.inf, gt=0)
-        """Bound of the integral of the error (anti-windup)."""
         inequality: bool = False
         """Bounds on the output (``lower``/``upper``) instead of a setpoint."""
         lower: list[float] = Field(default_factory=lambda: [-math.inf])
@@ -65,21 +60,21 @@ class ConstraintControllerEntity(FunctionalEntity):
         """Inequality: upper bound on the output, one value or one per output."""
 
     @classmethod
-    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+    def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
+        return with_kind(cls.Parameters, CONTROLLERS, field='kind', name=str(values.get('kind', 'pid')))
+
+    @classmethod
+    def port_specs(cls, params: Any) -> list[PortSpec]:
         task = params.task
         specs = [task_port('output', 'input', 'Output', task)]
         if not params.inequality:
             specs.append(task_port('setpoint', 'input', 'Setpoint', task))
         return specs + [task_port('control', 'output', 'Control', task)]
 
-    def configure(self, params: Parameters) -> None:
-        cls = PIDController if params.kind == 'pid' else PController
-        if type(getattr(self, 'controller', None)) is not cls:
-            self.controller = cls()
-        self.controller.kp, self.controller.max_output = params.kp, params.max_output
-        if isinstance(self.controller, PIDController):
-            self.controller.ki, self.controller.kd = params.ki, params.kd
-            self.controller.max_integral = params.max_integral
+    def configure(self, params: Any) -> None:
+        if not hasattr(self, 'controller'):  # a gain changed: the law keeps its state (the integral)
+            self.controller: ConstraintController = CONTROLLERS[params.kind]()
+        self.controller.configure(params)
         self.inequality = params.inequality
         self.lower = np.asarray(params.lower, dtype=float)
         self.upper = np.asarray(params.upper, dtype=float)

@@ -12,12 +12,10 @@ The entity knows nothing but its ports (boundary of knowledge, paper §3.1): it 
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Any
 
 from itasc_msgs.msg import Features
-from pydantic import create_model
 from sensor_msgs.msg import JointState
 
 from itasc_core.communication.ports import PortSpec
@@ -26,6 +24,7 @@ from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import ParameterModel
 from itasc_core.itasc.entities.messages import FeaturesSample
 from itasc_core.itasc.entities.scene_entity import PROGRAM_JOINTS, relation_semantics
+from itasc_core.kinds import with_kind
 
 from ..task_types import TASK_TYPES
 from .common import task_port
@@ -44,7 +43,7 @@ class VKCEntity(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return _with_chain(str(values.get('type', 'cartesian')))
+        return with_kind(cls.Parameters, TASK_TYPES, field='type', name=str(values.get('type', 'cartesian')))
 
     @classmethod
     def port_specs(cls, params: Any) -> list[PortSpec]:
@@ -79,10 +78,3 @@ class VKCEntity(FunctionalEntity):
             features, jacobian = vkc(pose, relation.jacobian)
         self.outputs['features'].write(FeaturesSample(t, vkc.names, joint_names, features, jacobian, vkc.rotation))
 
-
-@functools.cache
-def _with_chain(task_type: str) -> type[ParameterModel]:
-    """A VKC's parameters with those of task type ``task_type`` (UnknownKind if not registered)."""
-    kind = TASK_TYPES[task_type]
-    fields: dict[str, Any] = {'type': (Literal[task_type], task_type)}
-    return create_model(f'VKC_{task_type}', __base__=(kind.Parameters, VKCEntity.Parameters), **fields)
