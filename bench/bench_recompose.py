@@ -45,7 +45,9 @@ def model(directory: Path) -> Path:
     program['composition_steps'] = {
         'alone': {'remove': ['AvoidObstacle']},
         'back': {'add': [avoid], 'connections': connections},
-        'least_squares': {'swap': [{**solver, 'parameters': {**solver['parameters'], 'kind': 'wdls'}}]},
+        'least_squares': {'swap': [{**solver, 'parameters': {
+            key: value for key, value in solver['parameters'].items() if key not in ('backend', 'regularization')}
+            | {'kind': 'wdls'}}]},
         'quadratic': {'swap': [solver]}}
     task['composition_steps'] = {
         'soft': {'swap': [{**controller, 'parameters': {

@@ -31,5 +31,9 @@ setup(
             'nonfinite = itasc_core.computation.conditions.builtin:NonFinite',
             'inside = itasc_core.computation.conditions.inside:Inside',
         ],
+        'itasc.solvers': [
+            'qp = itasc_core.itasc.solver.qp:QpSolver',
+            'wdls = itasc_core.itasc.solver.wdls:WdlsSolver',
+        ],
     },
 )

@@ -1,5 +1,6 @@
 """What a process that hosts only Tasks imports (``--deploy per-composite``): the Task entities and
-the composite host, but not the Solvers' qpsolvers and scipy.sparse (itasc_core.lazy); the
+the composite host, but not the Solvers' qpsolvers and scipy.sparse (itasc_core.lazy); one that
+runs a Solver only its kind (the registry loads a kind when it is named); the
 re-exported names still resolve, and an unknown one is an AttributeError."""
 
 from __future__ import annotations
@@ -19,6 +20,14 @@ def test_a_process_hosting_only_tasks_does_not_load_the_solvers():
                     'import itasc_core.composition.host, itasc_tasks.entities, itasc_drivers.ports\n'
                     'solvers = ("qpsolvers", "scipy.sparse", "itasc_core.itasc.solver")\n'
                     'print(sorted(m for m in solvers if m in sys.modules))')
+    assert out.strip() == '[]'
+
+
+def test_a_process_running_the_wdls_solver_loads_only_that_kind():
+    out = _imported('import sys\n'
+                    'from itasc_core.itasc.entities.solver_entity import SolverEntity\n'
+                    'SolverEntity.parameters_of({"kind": "wdls", "damping": 0.2})\n'
+                    'print(sorted(m for m in ("qpsolvers", "itasc_core.itasc.solver.qp") if m in sys.modules))')
     assert out.strip() == '[]'
 
 

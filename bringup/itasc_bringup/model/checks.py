@@ -349,11 +349,6 @@ def _solver(where: _Where, loc: Loc, solver, joints: list[str]) -> None:
     for joint in solver.joint_weights:
         if joint not in joints:
             raise where.error(loc + ('joint_weights', joint), f"unknown joint '{joint}'; joints: {joints}")
-    if solver.kind == 'qp':
-        import qpsolvers
-        if solver.backend not in qpsolvers.available_solvers:
-            raise where.error(loc + ('backend',), f"QP backend '{solver.backend}' is not "
-                              f'available; available: {qpsolvers.available_solvers}')
 
 
 def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> None:

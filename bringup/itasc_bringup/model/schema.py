@@ -30,6 +30,7 @@ from itasc_core.computation.parameters import partial
 from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
+from itasc_core.itasc.solver.kind import SOLVERS
 from itasc_tasks.controllers import CONTROLLERS
 from itasc_tasks.entities.constraint_controller_entity import ControllerBase
 from itasc_tasks.entities.setpoint_generator_entity import Setpoint
@@ -57,7 +58,8 @@ def _as_list(value: Any) -> Any:
 #: The sections whose kind is registered (:mod:`itasc_core.kinds`): the registry, the field that
 #: names the kind and the suffix of each kind's section model.
 KIND_SECTIONS: list[tuple[Registry[Any], str, str]] = [
-    (TASK_TYPES, 'type', 'Task'), (CONDITIONS, 'condition', 'Monitor'), (CONTROLLERS, 'kind', '')]
+    (TASK_TYPES, 'type', 'Task'), (CONDITIONS, 'condition', 'Monitor'), (CONTROLLERS, 'kind', ''),
+    (SOLVERS, 'kind', '')]
 
 #: A Constraint Controller: its law and that law's gains (one section per registered controller).
 if TYPE_CHECKING:
@@ -353,10 +355,8 @@ class Running(_Model):
     """The transitions between them."""
 
 
-class Solver(SolverSettings):
-    """``wdls`` (weighted damped least squares, priorities by null-space projection; ``damping``
-    the maximum damping near singularities) or ``qp`` (cascade of QPs with inequalities; ``backend``
-    any qpsolvers solver; ``regularization`` the weight of the joint-velocity norm)."""
+class SolverBase(SolverSettings):
+    """The Solver (paper §4.1 "Solver"): a registered solver kind, its settings and the joints' weights."""
 
     joint_weights: dict[str, float] = Field(default_factory=dict)
     """Weight of each joint's velocity by joint name (default 1): a heavier joint moves less."""
@@ -367,6 +367,14 @@ class Solver(SolverSettings):
         if any(w <= 0 for w in value.values()):
             raise ValueError('joint weights must be > 0')
         return value
+
+
+#: The Solver: its kind and that kind's settings (one section per registered solver).
+if TYPE_CHECKING:
+    Solver = SolverBase
+else:
+    Solver = variants(SolverBase, SOLVERS, field='kind', suffix='')
+_solver = TypeAdapter(Solver)
 
 
 class TaskSwap(_Model):
@@ -422,7 +430,7 @@ class Program(_Model):
     """The objects and their frames."""
     tasks: list[Task] = Field(min_length=1)
     """The Tasks."""
-    solver: Solver = Field(default_factory=Solver)
+    solver: Solver = Field(default_factory=lambda: _solver.validate_python({}))
     """The Solver."""
     configurations: dict[str, dict[str, Settings]] = Field(default_factory=dict)
     """Named configurations: name -> target (a Task or Monitor) -> settings (paper §5)."""

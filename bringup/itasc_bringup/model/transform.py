@@ -201,10 +201,8 @@ def _step(app: Application, name: str, step: CompositionStep) -> CompositionStep
 def _solver(app: Application, solver: Solver) -> EntityModel:
     joints, limits = _joint_limits(app.program.robots)
     return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
-        'kind': solver.kind, 'backend': solver.backend, 'joint_names': joints, **limits,
-        'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints],
-        'damping': solver.damping, 'regularization': solver.regularization,
-        'position_limit_gain': solver.position_limit_gain, 'period': 1.0 / app.rate})
+        **solver.model_dump(exclude={'joint_weights'}), 'joint_names': joints, **limits,
+        'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints], 'period': 1.0 / app.rate})
 
 
 def _joint_limits(robots) -> tuple[list[str], dict[str, list[float]]]:

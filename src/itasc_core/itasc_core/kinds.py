@@ -14,7 +14,7 @@ file and one registration line. Nothing is imported before a model names the cat
 from __future__ import annotations
 
 import functools
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
 from typing import Annotated, Any, Generic, Literal, TypeVar, Union, cast
 
 from pydantic import BaseModel, Discriminator, Field, Tag, create_model
@@ -39,41 +39,47 @@ class Registry(Generic[K]):
 
     def __init__(self, group: str, *, what: str, base: type) -> None:
         self.group, self.what, self.base = group, what, base
-        self._kinds: dict[str, type[K]] | None = None
-        self._origins: dict[str, str] = {}
+        self._points: dict[str, EntryPoint] | None = None
+        self._loaded: dict[str, type[K]] = {}
+
+    def _entry_points(self) -> dict[str, EntryPoint]:
+        if self._points is None:
+            points: dict[str, EntryPoint] = {}
+            for point in sorted(entry_points(group=self.group), key=lambda p: p.name):
+                points.setdefault(point.name, point)  # the first of one seen twice (a distribution on two paths)
+            self._points = points
+        return self._points
+
+    def _load(self, name: str) -> type[K]:
+        """Kind ``name`` (only its module imported: a process that runs one kind loads only that one)."""
+        if name not in self._loaded:
+            point = self._entry_points()[name]
+            kind = point.load()
+            if not (isinstance(kind, type) and issubclass(kind, self.base)):
+                raise TypeError(f"{self.what} '{point.name}' ({point.value}) is not a {self.base.__name__}")
+            self._loaded[name] = cast(type[K], kind)
+        return self._loaded[name]
 
     def kinds(self) -> dict[str, type[K]]:
-        """Every registered kind by name (loaded once per process, sorted by name)."""
-        if self._kinds is None:
-            found: dict[str, type[K]] = {}
-            for point in sorted(entry_points(group=self.group), key=lambda p: p.name):
-                if point.name in found:
-                    continue  # an entry point seen twice (the same distribution on two paths)
-                kind = point.load()
-                if not (isinstance(kind, type) and issubclass(kind, self.base)):
-                    raise TypeError(f"{self.what} '{point.name}' ({point.value}) is not a {self.base.__name__}")
-                found[point.name] = cast(type[K], kind)
-                self._origins[point.name] = point.dist.name if point.dist is not None else ''
-            self._kinds = found
-        return self._kinds
+        """Every registered kind by name (each loaded once per process, sorted by name)."""
+        return {name: self._load(name) for name in self._entry_points()}
 
     def names(self) -> list[str]:
-        return list(self.kinds())
+        return list(self._entry_points())
 
     def plugins(self) -> list[str]:
         """The kinds other packages registered (not this project's)."""
-        self.kinds()
-        return [name for name, origin in self._origins.items() if origin.replace('-', '_') not in PROJECT]
+        return [name for name, point in self._entry_points().items()
+                if (point.dist.name if point.dist is not None else '').replace('-', '_') not in PROJECT]
 
     def __getitem__(self, name: str) -> type[K]:
-        kinds = self.kinds()
-        if name not in kinds:
-            raise UnknownKind(f"unknown {self.what} '{name}': not one of {sorted(kinds)} (entry point group "
-                              f"'{self.group}')")
-        return kinds[name]
+        if name not in self._entry_points():
+            raise UnknownKind(f"unknown {self.what} '{name}': not one of {sorted(self._entry_points())} (entry point "
+                              f"group '{self.group}')")
+        return self._load(name)
 
     def __contains__(self, name: object) -> bool:
-        return isinstance(name, str) and name in self.kinds()
+        return isinstance(name, str) and name in self._entry_points()
 
 
 def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suffix: str) -> Any:

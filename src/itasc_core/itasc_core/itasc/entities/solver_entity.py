@@ -2,9 +2,10 @@
 
 Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/ConstraintRows``
 sample per connected Task, :class:`.messages.RowsSample`; only rows of the current tick count, so
-a Task the Coordinator deactivated drops out at once), solves the prioritised problem with the configured solver
-(``wdls``: weighted damped least squares with null-space priorities; ``qp``: cascade of QPs with
-inequalities through qpsolvers) within the joint position and velocity limits, and writes
+a Task the Coordinator deactivated drops out at once), solves the prioritised problem with the
+configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
+squares with null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers)
+within the joint position and velocity limits, and writes
 
 * ``command``: the joint velocity setpoints as ``sensor_msgs/JointState`` — ``name`` (the
   program's joints) and ``velocity``; a JointState rather than a bare array so that every
@@ -21,7 +22,8 @@ contradict each other, a QP backend that fails), it commands zero velocity and r
 from __future__ import annotations
 
 import math
-from typing import Literal
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from itasc_msgs.msg import ConstraintRows as RowsMsg
@@ -33,7 +35,9 @@ from ...communication.event_names import SAFETY_EVENT, solver_status
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
 from ...computation.parameters import ParameterModel
-from ..solver import ConstraintRows, QpSolver, WdlsSolver
+from ...kinds import with_kind
+from ..solver.kind import SOLVERS
+from ..solver.problem import ConstraintRows
 from .messages import PROGRAM_VELOCITIES, ROWS_SEMANTICS, JointSample, RowsSample, SolverStatusSample
 from .scene_entity import PROGRAM_JOINTS
 
@@ -41,20 +45,11 @@ __all__ = ['SolverEntity', 'SolverSettings']
 
 
 class SolverSettings(ParameterModel):
-    """How the Solver solves: ``wdls`` (weighted damped least squares, priorities by null-space
-    projection; ``damping`` the largest damping near singularities) or ``qp`` (a cascade of QPs with
-    inequalities; ``backend`` any qpsolvers solver; ``regularization`` the weight of the
-    joint-velocity norm)."""
+    """How the Solver solves: a registered Solver kind (``wdls``: weighted damped least squares,
+    priorities by null-space projection; ``qp``: a cascade of QPs with inequalities) and its settings."""
 
-    kind: Literal['wdls', 'qp'] = 'wdls'
-    """``wdls``: weighted damped least squares, priorities by null-space projection; ``qp``: a cascade
-    of quadratic programs, inequalities included."""
-    backend: str = 'daqp'
-    """The QP solver (``qp``): any solver ``qpsolvers`` has installed."""
-    damping: float = Field(default=0.1, ge=0)
-    """Largest damping near singularities (``wdls``) [rad/s]."""
-    regularization: float = Field(default=1e-6, gt=0)
-    """Weight of the joint-velocity norm (``qp``)."""
+    kind: str = 'wdls'
+    """The Solver: a registered solver kind (``wdls`` or ``qp``; its settings follow)."""
     position_limit_gain: float = Field(default=0.5, gt=0, le=1)
     """Fraction of the distance to a joint's position limit it may close in one second (0 < gain ≤ 1)."""
 
@@ -95,7 +90,11 @@ class SolverEntity(FunctionalEntity):
             return self
 
     @classmethod
-    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+    def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
+        return with_kind(cls.Parameters, SOLVERS, field='kind', name=str(values.get('kind', 'wdls')))
+
+    @classmethod
+    def port_specs(cls, params: Any) -> list[PortSpec]:
         return [
             PortSpec(name='rows', direction='input', msg_type=RowsMsg, type='constraint_rows',
                      semantics=ROWS_SEMANTICS, multiple=True),
@@ -107,7 +106,7 @@ class SolverEntity(FunctionalEntity):
                      semantics='SolverStatus(program)'),
         ]
 
-    def configure(self, params: Parameters) -> None:
+    def configure(self, params: Any) -> None:
         self.joint_names = tuple(params.joint_names)
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self._columns: dict[tuple[str, ...], list[int]] = {}
@@ -116,13 +115,8 @@ class SolverEntity(FunctionalEntity):
         self.velocity_limit = np.array(params.velocity_limit, dtype=float)
         weights = np.array(params.joint_weights, dtype=float)
         joint_weights = weights[0] if weights.size == 1 else weights
-        self.solver: WdlsSolver | QpSolver
-        if params.kind == 'wdls':
-            self.solver = WdlsSolver(max_damping=params.damping, joint_weights=joint_weights,
-                                     position_limit_gain=params.position_limit_gain)
-        else:
-            self.solver = QpSolver(backend=params.backend, regularization=params.regularization,
-                                   joint_weights=joint_weights, position_limit_gain=params.position_limit_gain)
+        self.solver = SOLVERS[params.kind].create(params, joint_weights=joint_weights,
+                                                  position_limit_gain=params.position_limit_gain)
         self.period = params.period
         self._last_t: float | None = None
         self._dt = self.period

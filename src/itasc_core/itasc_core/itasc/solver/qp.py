@@ -35,16 +35,39 @@ import qpsolvers
 from scipy.linalg.lapack import dgeqp3 as _geqp3
 from scipy.linalg.lapack import dorgqr as _orgqr
 
+from pydantic import Field, field_validator
+
+from ...computation.parameters import ParameterModel
+from .kind import Solver
 from .problem import ConstraintRows, SolverResult, group_levels, velocity_bounds
 
-__all__ = ['QpSolver']
+__all__ = ['QpSolver', 'QpSettings']
+
+
+class QpSettings(ParameterModel):
+    """The settings of the ``qp`` Solver."""
+
+    backend: str = 'daqp'
+    """The QP solver: any solver ``qpsolvers`` has installed."""
+    regularization: float = Field(default=1e-6, gt=0)
+    """Weight of the joint-velocity norm."""
+
+    @field_validator('backend')
+    @classmethod
+    def _available(cls, value: str) -> str:
+        if value not in qpsolvers.available_solvers:
+            raise ValueError(f"QP backend '{value}' is not available; available: {qpsolvers.available_solvers}")
+        return value
 
 _EQUALITY = 5  # DAQP constraint sense: equality
 _BIG = 1e9  # stands for infinity where a backend cannot take inf
 
 
-class QpSolver:
-    """Cascade of QPs, one per priority level, with joint limits and task inequalities."""
+class QpSolver(Solver):
+    """A cascade of QPs, one per priority level, with joint limits and task inequalities
+    (``backend`` any qpsolvers solver; ``regularization`` the weight of the joint-velocity norm)."""
+
+    Parameters = QpSettings
 
     def __init__(self, *, backend: str = 'daqp', direct: bool = True,
                  joint_weights: float | np.ndarray = 1.0, regularization: float = 1e-8,
@@ -80,6 +103,12 @@ class QpSolver:
                              'raise_error': False},
                     'proxqp': {'eps_abs': 1e-9, 'eps_rel': 0.0}}
         self.backend_options = {**defaults.get(backend, {}), **(backend_options or {})}
+
+    @classmethod
+    def create(cls, params: QpSettings, *, joint_weights: float | np.ndarray,  # type: ignore[override]
+               position_limit_gain: float) -> QpSolver:
+        return cls(backend=params.backend, regularization=params.regularization, joint_weights=joint_weights,
+                   position_limit_gain=position_limit_gain)
 
     def solve(self, rows: Sequence[ConstraintRows], *, q: np.ndarray, lower: np.ndarray,
               upper: np.ndarray, velocity_limit: np.ndarray, dt: float) -> SolverResult:

@@ -25,13 +25,27 @@ from time import perf_counter
 import numpy as np
 from scipy.linalg.lapack import dgesdd as _gesdd
 
+from pydantic import Field
+
+from ...computation.parameters import ParameterModel
+from .kind import Solver
 from .problem import ConstraintRows, SolverResult, group_levels, velocity_bounds
 
-__all__ = ['WdlsSolver']
+__all__ = ['WdlsSolver', 'WdlsSettings']
 
 
-class WdlsSolver:
-    """Prioritised weighted damped least squares with uniform velocity saturation."""
+class WdlsSettings(ParameterModel):
+    """The settings of the ``wdls`` Solver."""
+
+    damping: float = Field(default=0.1, ge=0)
+    """Largest damping near singularities [rad/s]."""
+
+
+class WdlsSolver(Solver):
+    """Weighted damped least squares, priorities by null-space projection, uniform velocity
+    saturation (``damping``: the largest damping near singularities)."""
+
+    Parameters = WdlsSettings
 
     def __init__(self, *, joint_weights: float | np.ndarray = 1.0, epsilon: float = 0.02,
                  max_damping: float = 0.05, rank_tolerance: float = 1e-9,
@@ -45,6 +59,11 @@ class WdlsSolver:
         self.rank_tolerance = rank_tolerance
         self.position_limit_gain = position_limit_gain
         self.inequality_iterations = inequality_iterations
+
+    @classmethod
+    def create(cls, params: WdlsSettings, *, joint_weights: float | np.ndarray,  # type: ignore[override]
+               position_limit_gain: float) -> WdlsSolver:
+        return cls(max_damping=params.damping, joint_weights=joint_weights, position_limit_gain=position_limit_gain)
 
     def solve(self, rows: Sequence[ConstraintRows], *, q: np.ndarray, lower: np.ndarray,
               upper: np.ndarray, velocity_limit: np.ndarray, dt: float) -> SolverResult:
