@@ -23,5 +23,9 @@ setup(
             'simulated_robot = itasc_drivers.simulated_robot:main',
             'fake_ros2_control = itasc_drivers.fake_ros2_control:main',
         ],
+        'itasc.drivers': [
+            'ros2_control = itasc_drivers.drivers.ros2_control:Ros2Control',
+            'simulated = itasc_drivers.drivers.simulated:Simulated',
+        ],
     },
 )

@@ -295,7 +295,7 @@ def _schema_at(loc: tuple, value: Any = None) -> tuple[Any, Any]:
     where the section has one per kind), and the pydantic field it is (or None)."""
     annotation, field = typing.Dict[str, Application], None
     for part in loc:
-        annotation = _unwrap(annotation)
+        annotation = _unwrap(annotation, has=part)
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
             field = next(f for n, f in annotation.model_fields.items() if part in (n, f.alias))
             annotation = field.annotation
@@ -306,11 +306,18 @@ def _schema_at(loc: tuple, value: Any = None) -> tuple[Any, Any]:
     return _unwrap(annotation, value), field
 
 
-def _unwrap(annotation: Any, value: Any = None) -> Any:
+def _unwrap(annotation: Any, value: Any = None, *, has: Any = None) -> Any:
+    """The member of a union that ``value`` is a section of, or that has the field ``has``."""
     while typing.get_origin(annotation) in (typing.Union, typing.Annotated, types.UnionType):
         members = [a for a in typing.get_args(annotation) if a is not type(None)]
-        annotation = next((a for a in members if _names_kind(_unwrap(a), value)), members[0])
+        annotation = next((a for a in members if _names_kind(_unwrap(a), value) or _has(_unwrap(a), has)),
+                          members[0])
     return annotation
+
+
+def _has(model: Any, field: Any) -> bool:
+    return field is not None and isinstance(model, type) and issubclass(model, BaseModel) and any(
+        field in (n, f.alias) for n, f in model.model_fields.items())
 
 
 def _names_kind(model: Any, value: Any) -> bool:

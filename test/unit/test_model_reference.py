@@ -47,7 +47,8 @@ def test_the_schema_refuses_what_the_loader_refuses():
 def test_the_reference_documents_every_field_and_every_kind():
     text = markdown(examples=config_dirs()[-1])
     for section in ('Application', 'Program', 'CartesianTask', 'PointPlaneTask', 'PController', 'PIDController',
-                    'Setpoint', 'AboveMonitor', 'InsideMonitor', 'Driver', 'WdlsSolver', 'QpSolver'):
+                    'Setpoint', 'AboveMonitor', 'InsideMonitor', 'SimulatedDriver', 'Ros2ControlDriver', 'WdlsSolver',
+                    'QpSolver'):
         assert f'\n## {section}\n' in text
     rows = [line for line in text.splitlines() if line.startswith('| `') and line.count('|') >= 5]
     undocumented = [row for row in rows if row.rstrip().endswith('|  |')]

@@ -361,19 +361,9 @@ def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> N
             raise where.error(loc + ('robot',), f"robot '{driver.robot}' already has a driver "
                               f'(drivers[{driven[driver.robot]}])')
         driven[driver.robot] = i
-        robot_joints = joints[driver.robot]
-        for joint in driver.initial:
-            if joint not in robot_joints:
-                raise where.error(loc + ('initial', joint), f"robot '{driver.robot}' has no joint '{joint}'; "
-                                  f'joints: {robot_joints}')
-        if driver.joints is not None:
-            for k, joint in enumerate(driver.joints):
-                if joint not in robot_joints:
-                    raise where.error(loc + ('joints', k), f"robot '{driver.robot}' has no joint '{joint}'; "
-                                      f'joints: {robot_joints}')
-            missing = [j for j in robot_joints if j not in driver.joints]
-            if missing or len(set(driver.joints)) != len(driver.joints):
-                raise where.error(loc + ('joints',), f'list every joint of the robot once (missing: {missing})')
+        problem = driver.driver.problem(driver, robot=driver.robot, joints=joints[driver.robot])
+        if problem is not None:
+            raise where.error(loc + problem[0], problem[1])
     for robot in joints:
         if robot not in driven:
             raise where.error(('drivers',), f"robot '{robot}' has no driver")

@@ -31,6 +31,7 @@ from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
 from itasc_core.itasc.solver.kind import SOLVERS
+from itasc_drivers.drivers import DRIVERS
 from itasc_tasks.controllers import CONTROLLERS
 from itasc_tasks.entities.constraint_controller_entity import ControllerBase
 from itasc_tasks.entities.setpoint_generator_entity import Setpoint
@@ -40,7 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationInfo, 
 __all__ = ['KIND_SECTIONS', 'Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task',
            'Controller', 'Setpoint', 'Placement', 'ObjectMotion', 'Driver', 'Sensor', 'Solver', 'Monitor',
            'ControllerSettings', 'Settings', 'State', 'Transition', 'Running', 'TaskSwap', 'CompositionStep',
-           'TaskBase', 'MonitorBase']
+           'TaskBase', 'MonitorBase', 'DriverBase', 'SolverBase']
 
 NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
@@ -59,7 +60,7 @@ def _as_list(value: Any) -> Any:
 #: names the kind and the suffix of each kind's section model.
 KIND_SECTIONS: list[tuple[Registry[Any], str, str]] = [
     (TASK_TYPES, 'type', 'Task'), (CONDITIONS, 'condition', 'Monitor'), (CONTROLLERS, 'kind', ''),
-    (SOLVERS, 'kind', '')]
+    (SOLVERS, 'kind', ''), (DRIVERS, 'kind', 'Driver')]
 
 #: A Constraint Controller: its law and that law's gains (one section per registered controller).
 if TYPE_CHECKING:
@@ -468,36 +469,26 @@ class Program(_Model):
 
 # -- Application ------------------------------------------------------------------------------------
 
-class Driver(_Model):
-    """The Driver of one robot: ``simulated`` (``initial`` joint positions), or ``ros2_control``
-    (an existing driver: ``joint_states`` topic, ``controller`` whose ``joints`` in order take
-    ``interface`` commands on ``command_topic``, default ``/<controller>/commands``)."""
+class DriverBase(_Model):
+    """The Driver of one robot (paper §4.1 "Driver"): a registered driver kind and its fields."""
 
     robot: str
     """The robot it drives."""
-    kind: Literal['simulated', 'ros2_control']
-    """``simulated`` (integrates the commanded velocities) or ``ros2_control`` (an existing driver)."""
-    initial: dict[str, float] = Field(default_factory=dict)
-    """Initial joint positions of a simulated robot, by joint name [rad or m]."""
-    joint_states: str = '/joint_states'
-    """Where a ``ros2_control`` driver publishes ``sensor_msgs/JointState``."""
-    controller: str | None = Field(default=None, pattern=r'^[A-Za-z0-9_/]+$')
-    """The ros2_control controller that takes the commands."""
-    interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
-    """What the controller takes: ``velocity`` or ``position`` (``std_msgs/Float64MultiArray``), or ``trajectory``
-    (``trajectory_msgs/JointTrajectory``)."""
-    joints: list[str] | None = None
-    """The controller's joints, in the order its commands have them."""
-    command_topic: str | None = None
-    """Where commands go (default ``/<controller>/commands``, or ``/<controller>/joint_trajectory``)."""
+    kind: str
+    """A registered driver: ``simulated`` (integrates the commanded velocities) or ``ros2_control``
+    (an existing driver); its fields follow."""
 
-    @model_validator(mode='after')
-    def _complete(self) -> 'Driver':
-        if self.kind == 'ros2_control' and not (self.controller and self.joints):
-            raise ValueError("a 'ros2_control' driver needs controller and joints")
-        if self.kind == 'simulated' and (self.controller or self.joints):
-            raise ValueError("a 'simulated' driver takes no controller or joints")
-        return self
+    @property
+    def driver(self) -> Any:
+        """Its kind (:class:`itasc_drivers.drivers.Driver`)."""
+        return DRIVERS[self.kind]
+
+
+#: A Driver: the robot and the fields of its kind (one section per registered driver).
+if TYPE_CHECKING:
+    Driver = DriverBase
+else:
+    Driver = variants(DriverBase, DRIVERS, field='kind', suffix='Driver')
 
 
 class Sensor(_Model):

@@ -4,7 +4,7 @@
 ::
 
     <application>                      rate; Drivers and Sensors, then the program, every tick
-      Driver_<robot>                   SimulatedRobot | Ros2ControlAdapter
+      Driver_<robot>                   its driver kind's entity (SimulatedRobot, Ros2ControlAdapter, ...)
       Sensor_<object>                  PoseSensor
       <program> (itasc)                Constraint-based program
         Robot_<robot>                  RobotEntity: driver joint state -> model order
@@ -41,6 +41,7 @@ from itasc_core.communication.event_names import (ACTIVATE, DEACTIVATE, OFF, ON,
                                                   named, to_child)
 from itasc_core.composition.model import (CompositeModel, CompositionStepModel, ConnectionModel, EntityModel,
                                           MonitorModel, RunningModel, SafetyModel)
+from itasc_drivers.drivers import DrivenRobot
 
 from .checks import SOLVER_QUANTITIES, load_robot
 from .schema import Application, CompositionStep, Driver, Monitor, Program, Solver, Task, TaskSwap
@@ -56,8 +57,6 @@ KINDS = {
     'spg': 'itasc_tasks.entities.setpoint_generator_entity:SetpointGeneratorEntity',
     'cc': 'itasc_tasks.entities.constraint_controller_entity:ConstraintControllerEntity',
     'rows': 'itasc_tasks.entities.constraint_rows_entity:ConstraintRowsEntity',
-    'simulated': 'itasc_drivers.simulated_robot:SimulatedRobot',
-    'ros2_control': 'itasc_drivers.ros2_control_adapter:Ros2ControlAdapter',
     'pose': 'itasc_drivers.pose_sensor:PoseSensor',
 }
 #: The Task composite's state before any configuration event (see the module docstring).
@@ -115,17 +114,11 @@ def _placement(item) -> dict[str, list[float]]:
 # -- Application level ----------------------------------------------------------------------------
 
 def _driver(driver: Driver, robot, rate: float) -> EntityModel:
-    name = f'Driver_{driver.robot}'
-    if driver.kind == 'simulated':
-        return EntityModel(name=name, kind=KINDS['simulated'], parameters={
-            'robot': robot.name, 'urdf': robot.urdf, 'base': robot.base, 'initial': dict(driver.initial),
-            **_joint_limits([robot])[1]})
-    suffix = 'joint_trajectory' if driver.interface == 'trajectory' else 'commands'
-    controller = driver.controller.strip('/')
-    return EntityModel(name=name, kind=KINDS['ros2_control'], parameters={
-        'robot': robot.name, 'joints': list(driver.joints or ()), 'joint_states_topic': driver.joint_states,
-        'command_topic': driver.command_topic or f'/{controller}/{suffix}', 'interface': driver.interface,
-        'horizon': 2.0 / rate})
+    """The Driver's entity: its kind's, with the parameters its kind gives it."""
+    joints, limits = _joint_limits([robot])
+    kind = driver.driver
+    driven = DrivenRobot(name=robot.name, urdf=robot.urdf, base=robot.base, joints=joints, limits=limits, rate=rate)
+    return EntityModel(name=f'Driver_{driver.robot}', kind=kind.entity, parameters=kind.parameters(driver, driven))
 
 
 # -- Constraint-based program -----------------------------------------------------------------------

@@ -1,0 +1,48 @@
+"""What a Driver kind is (:mod:`itasc_drivers.drivers`) and their registry."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from itasc_core.computation.parameters import NoParameters, ParameterModel
+from itasc_core.kinds import Registry
+
+__all__ = ['Driver', 'DRIVERS', 'DrivenRobot']
+
+
+@dataclass(frozen=True)
+class DrivenRobot:
+    """What the model says of the robot a Driver drives: its kinematic model, its joints in order and
+    their limits (the URDF's, overridden by the model's), and the application's rate."""
+
+    name: str
+    urdf: str
+    base: str
+    joints: list[str]
+    limits: Mapping[str, list[float]]
+    rate: float
+
+
+class Driver:
+    """A kind of Driver: the fields of its section, its entity and that entity's parameters."""
+
+    #: The section's own fields (those after ``robot`` and ``kind``).
+    Parameters: ClassVar[type[ParameterModel]] = NoParameters
+    #: Its Functional Entity, as a composition model names a kind: ``package.module:Class``.
+    entity: ClassVar[str]
+
+    @classmethod
+    def parameters(cls, section: Any, robot: DrivenRobot) -> dict[str, Any]:
+        """The entity's parameters for the Driver ``section`` of ``robot``."""
+        raise NotImplementedError
+
+    @classmethod
+    def problem(cls, section: Any, *, robot: str, joints: Sequence[str]) -> tuple[tuple[str | int, ...], str] | None:
+        """What in ``section`` does not fit ``robot`` and its ``joints`` (the path in the section, why),
+        or None."""
+        return None
+
+
+DRIVERS: Registry[Driver] = Registry('itasc.drivers', what='driver', base=Driver)

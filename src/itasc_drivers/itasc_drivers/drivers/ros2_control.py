@@ -1,0 +1,54 @@
+"""The Driver ``ros2_control``: an existing ros2_control driver, reached through its controller's
+command topic and ``joint_states`` (:class:`itasc_drivers.ros2_control_adapter.Ros2ControlAdapter`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Literal
+
+from itasc_core.computation.parameters import ParameterModel
+from pydantic import Field
+
+from .kind import DrivenRobot, Driver
+
+__all__ = ['Ros2Control']
+
+
+class Ros2ControlSection(ParameterModel):
+    joint_states: str = '/joint_states'
+    """Where the driver publishes ``sensor_msgs/JointState``."""
+    controller: str = Field(pattern=r'^[A-Za-z0-9_/]+$')
+    """The ros2_control controller that takes the commands."""
+    interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
+    """What the controller takes: ``velocity`` or ``position`` (``std_msgs/Float64MultiArray``), or ``trajectory``
+    (``trajectory_msgs/JointTrajectory``)."""
+    joints: list[str] = Field(min_length=1)
+    """The controller's joints, in the order its commands have them."""
+    command_topic: str | None = None
+    """Where commands go (default ``/<controller>/commands``, or ``/<controller>/joint_trajectory``)."""
+
+
+class Ros2Control(Driver):
+    """An existing driver: ``joint_states`` topic, ``controller`` whose ``joints`` in order take
+    ``interface`` commands on ``command_topic``."""
+
+    Parameters = Ros2ControlSection
+    entity = 'itasc_drivers.ros2_control_adapter:Ros2ControlAdapter'
+
+    @classmethod
+    def parameters(cls, section: Ros2ControlSection, robot: DrivenRobot) -> dict[str, Any]:
+        suffix = 'joint_trajectory' if section.interface == 'trajectory' else 'commands'
+        return {'robot': robot.name, 'joints': list(section.joints), 'joint_states_topic': section.joint_states,
+                'command_topic': section.command_topic or f'/{section.controller.strip("/")}/{suffix}',
+                'interface': section.interface, 'horizon': 2.0 / robot.rate}
+
+    @classmethod
+    def problem(cls, section: Ros2ControlSection, *, robot: str,
+                joints: Sequence[str]) -> tuple[tuple[str | int, ...], str] | None:
+        for k, joint in enumerate(section.joints):
+            if joint not in joints:
+                return ('joints', k), f"robot '{robot}' has no joint '{joint}'; joints: {list(joints)}"
+        missing = [j for j in joints if j not in section.joints]
+        if missing or len(set(section.joints)) != len(section.joints):
+            return ('joints',), f'list every joint of the robot once (missing: {missing})'
+        return None
