@@ -10,7 +10,6 @@ hand-written node (:mod:`handwritten`) runs it.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -18,11 +17,9 @@ import numpy as np
 
 from itasc_core.itasc import Object, QpSolver, Robot, Scene, WdlsSolver
 from itasc_core.itasc.objects import periodic_translation
-from itasc_core.itasc.robot import se3
-from itasc_tasks.controllers import PController, PIDController
+from itasc_tasks.controllers import CONTROLLERS
 from itasc_tasks.constraint_output import ConstraintOutput
-from itasc_tasks.setpoint_generator import (FixedSetpoint, MinimumJerkSetpoint, PeriodicSetpoint,
-                                            TrapezoidalSetpoint)
+from itasc_tasks.setpoints import SETPOINTS
 from itasc_tasks.task import TaskComputation
 
 __all__ = ['FusedProgram']
@@ -30,27 +27,14 @@ __all__ = ['FusedProgram']
 
 def _setpoint(task):
     sp = task.setpoint
-    if sp is None or sp.kind == 'hold':
-        return None  # TaskComputation holds the first output
-    target = se3(sp.pose.xyz, sp.pose.rpy) if sp.pose is not None else np.array(sp.value or [], dtype=float)
-    if sp.kind == 'fixed':
-        return FixedSetpoint(target)
-    if sp.kind == 'minimum_jerk':
-        return MinimumJerkSetpoint(target, duration=sp.duration, max_velocity=sp.max_velocity)
-    if sp.kind == 'trapezoidal':
-        return TrapezoidalSetpoint(target, duration=sp.duration, max_velocity=sp.max_velocity or math.inf,
-                                   max_acceleration=sp.max_acceleration or 1.0)
-    if sp.kind == 'periodic':
-        return PeriodicSetpoint(amplitude=sp.amplitude, period=sp.period, offset=sp.offset or 0.0,
-                                phase=sp.phase or 0.0)
-    raise ValueError(f'task {task.name}: setpoint {sp.kind!r} is not supported by the fused program')
+    return None if sp is None else SETPOINTS[sp.kind].generator(sp)  # None: TaskComputation holds
 
 
 def _task(task) -> TaskComputation:
     relation = {'o1': task.o1, 'o2': task.o2} if task.kind.reads == 'relation' else {}
     c = task.controller
-    controller = PController(kp=c.kp, max_output=c.max_output) if c.kind == 'p' else \
-        PIDController(kp=c.kp, ki=c.ki, kd=c.kd, max_output=c.max_output)
+    controller = CONTROLLERS[c.kind]()
+    controller.configure(c)
     inequality = task.constraint == 'inequality'
     return TaskComputation(
         task.name, vkc=task.kind.chain(task), **relation,

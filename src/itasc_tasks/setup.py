@@ -30,5 +30,13 @@ setup(
             'p = itasc_tasks.controllers.p:PController',
             'pid = itasc_tasks.controllers.pid:PIDController',
         ],
+        'itasc.setpoint_generators': [
+            'fixed = itasc_tasks.setpoints.fixed:Fixed',
+            'hold = itasc_tasks.setpoints.hold:Hold',
+            'minimum_jerk = itasc_tasks.setpoints.minimum_jerk:MinimumJerk',
+            'periodic = itasc_tasks.setpoints.periodic:Periodic',
+            'topic = itasc_tasks.setpoints.topic:Topic',
+            'trapezoidal = itasc_tasks.setpoints.trapezoidal:Trapezoidal',
+        ],
     },
 )

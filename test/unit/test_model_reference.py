@@ -47,14 +47,15 @@ def test_the_schema_refuses_what_the_loader_refuses():
 def test_the_reference_documents_every_field_and_every_kind():
     text = markdown(examples=config_dirs()[-1])
     for section in ('Application', 'Program', 'CartesianTask', 'PointPlaneTask', 'PController', 'PIDController',
-                    'Setpoint', 'AboveMonitor', 'InsideMonitor', 'SimulatedDriver', 'Ros2ControlDriver', 'WdlsSolver',
-                    'QpSolver'):
+                    'MinimumJerkSetpoint', 'HoldSetpoint', 'AboveMonitor', 'InsideMonitor', 'SimulatedDriver',
+                    'Ros2ControlDriver', 'WdlsSolver', 'QpSolver'):
         assert f'\n## {section}\n' in text
     rows = [line for line in text.splitlines() if line.startswith('| `') and line.count('|') >= 5]
     undocumented = [row for row in rows if row.rstrip().endswith('|  |')]
     assert not undocumented, undocumented
     for kind in ('type: cartesian', 'type: distance', 'type: point_plane', 'kind: qp', 'kind: wdls', 'condition: above',
-                 'condition: inside', 'kind: simulated'):
+                 'condition: inside', 'kind: simulated', 'kind: ros2_control', 'kind: pid', 'kind: p',
+                 'kind: minimum_jerk', 'kind: hold', 'kind: topic'):
         assert f'**{kind}**' in text
     assert 'NearMonitor' not in text and 'HorizontalDistanceTask' not in text  # the test package's kinds
 

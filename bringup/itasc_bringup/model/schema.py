@@ -34,14 +34,15 @@ from itasc_core.itasc.solver.kind import SOLVERS
 from itasc_drivers.drivers import DRIVERS
 from itasc_tasks.controllers import CONTROLLERS
 from itasc_tasks.entities.constraint_controller_entity import ControllerBase
-from itasc_tasks.entities.setpoint_generator_entity import Setpoint
+from itasc_tasks.entities.setpoint_generator_entity import SetpointBase
+from itasc_tasks.setpoints import SETPOINTS
 from itasc_tasks.task_types import TASK_TYPES
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationInfo, field_validator, model_validator
 
 __all__ = ['KIND_SECTIONS', 'Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task',
            'Controller', 'Setpoint', 'Placement', 'ObjectMotion', 'Driver', 'Sensor', 'Solver', 'Monitor',
            'ControllerSettings', 'Settings', 'State', 'Transition', 'Running', 'TaskSwap', 'CompositionStep',
-           'TaskBase', 'MonitorBase', 'DriverBase', 'SolverBase']
+           'TaskBase', 'MonitorBase', 'DriverBase', 'SolverBase', 'SetpointBase']
 
 NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
@@ -60,7 +61,13 @@ def _as_list(value: Any) -> Any:
 #: names the kind and the suffix of each kind's section model.
 KIND_SECTIONS: list[tuple[Registry[Any], str, str]] = [
     (TASK_TYPES, 'type', 'Task'), (CONDITIONS, 'condition', 'Monitor'), (CONTROLLERS, 'kind', ''),
-    (SOLVERS, 'kind', ''), (DRIVERS, 'kind', 'Driver')]
+    (SOLVERS, 'kind', ''), (DRIVERS, 'kind', 'Driver'), (SETPOINTS, 'kind', 'Setpoint')]
+
+#: A Setpoint Generator: its kind and that kind's fields (one section per registered generator).
+if TYPE_CHECKING:
+    Setpoint = SetpointBase
+else:
+    Setpoint = variants(SetpointBase, SETPOINTS, field='kind', suffix='Setpoint')
 
 #: A Constraint Controller: its law and that law's gains (one section per registered controller).
 if TYPE_CHECKING:
@@ -228,10 +235,10 @@ class TaskBase(_Model):
         return self
 
     def _check_setpoint(self, sp: Setpoint, m: int) -> None:
-        if sp.pose is not None and not self.kind.pose_setpoints:
+        if getattr(sp, 'pose', None) is not None and not self.kind.pose_setpoints:
             raise ValueError(f'a setpoint pose needs a task whose chain is a pose (not {self.type}); give a value')
         for key in ('value', 'amplitude', 'offset', 'phase'):
-            v = getattr(sp, key)
+            v = getattr(sp, key, None)
             if v is not None and len(v) not in ((1, m) if key != 'value' else (m,)):
                 raise ValueError(f'setpoint {key} has {len(v)} values for {m} outputs {list(self.selected)}')
 

@@ -1,7 +1,8 @@
 """SetpointGeneratorEntity: the Setpoint Generator of a Task (paper §4.1, §4.2, Fig. 2).
 
-Calls :mod:`itasc_tasks.setpoint_generator`. Its parameters are a Task's ``setpoint`` section
-(:class:`Setpoint`, the same model) and the Task's outputs. ``kind``:
+Runs the generator its ``kind`` makes, a registered setpoint generator (:mod:`itasc_tasks.setpoints`;
+the generators are :mod:`itasc_tasks.setpoint_generator`'s). Its parameters are a Task's
+``setpoint`` section (the same model) and the Task's outputs. The shipped kinds:
 
 * ``hold``: hold the output where it was when the Task became active;
 * ``fixed``: a constant target (``value`` or ``pose``);
@@ -9,8 +10,10 @@ Calls :mod:`itasc_tasks.setpoint_generator`. Its parameters are a Task's ``setpo
   the target (``duration``, ``max_velocity``, ``max_acceleration``);
 * ``periodic``: ``offset + amplitude sin(2 pi t / period + phase)``;
 * ``topic``: values (in output space) received on the ROS topic ``topic``
-  (``std_msgs/Float64MultiArray``); holds the current output until the first one arrives; a
-  value that is not finite or not one per output raises ``e_emergency`` (Safety).
+  (``std_msgs/Float64MultiArray``); holds the current output until the first one arrives.
+
+A setpoint that is not finite (of any kind), or a topic's that is not one value per output, raises
+``e_emergency`` (Safety).
 
 The target is ``value`` in output space, or ``pose``, the pose of o2 in o1 (a Cartesian Task;
 interpolated along the geodesic). A point-to-point motion
@@ -23,11 +26,11 @@ is reached; Monitors watch it to tell the Coordinator that a motion is over).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, Literal
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field
 from std_msgs.msg import Float64, Float64MultiArray
 
 from itasc_core.communication.event_names import SAFETY_EVENT
@@ -37,78 +40,32 @@ from itasc_core.computation.parameters import ParameterModel
 from itasc_core.communication.qos import DATA_QOS
 from itasc_core.communication.samples import Float64Sample
 from itasc_core.itasc.entities.messages import FeaturesSample, SetpointSample
-from itasc_core.itasc.entities.scene_entity import Placement
-from itasc_core.itasc.robot import se3
+from itasc_core.kinds import with_kind
 
 from ..constraint_output import ConstraintOutput, Selection
-from ..setpoint_generator import (FixedSetpoint, HoldSetpoint, MinimumJerkSetpoint, OutputSetpoint,
-                                  PeriodicSetpoint, PointToPoint, SetpointGenerator, TopicSetpoint,
-                                  TrapezoidalSetpoint, start_value)
+from ..setpoint_generator import OutputSetpoint, PointToPoint, TopicSetpoint, start_value
+from ..setpoints import SETPOINTS
 from .common import Ticks, task_port
 
-__all__ = ['SetpointGeneratorEntity', 'Setpoint']
+__all__ = ['SetpointGeneratorEntity', 'SetpointBase']
 
 
-def _as_list(value: Any) -> Any:
-    """Accept a scalar where a list is expected (``value: 0.3``)."""
-    return [value] if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+class SetpointBase(ParameterModel):
+    """A Setpoint Generator (paper §4.1): a registered kind and its fields. ``value`` is in output
+    space; a Cartesian Task may give a ``pose`` of o2 in o1 instead."""
 
-
-class Setpoint(ParameterModel):
-    """A Setpoint Generator (paper §4.1). ``value`` is in output space; a Cartesian Task may give a
-    ``pose`` of o2 in o1 instead. ``hold`` keeps the output where the Task found it."""
-
-    kind: Literal['hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic']
-    """How the setpoint moves: ``hold`` where the Task found it, ``fixed``, ``minimum_jerk`` or
-    ``trapezoidal`` towards ``value``/``pose``, ``periodic`` (a sine), or read from a ``topic``."""
-    value: list[float] | None = None
-    """The target in output space, one number per output [m, rad or the output's unit]."""
-    pose: Placement | None = None
-    """A Cartesian Task's target: the pose of o2 in o1."""
-    duration: float = Field(default=0.0, ge=0)
-    """Time to reach the target [s] (``minimum_jerk``; 0: at once)."""
-    max_velocity: list[float] | None = None
-    """Per output [unit/s] (``trapezoidal``)."""
-    max_acceleration: list[float] | None = None
-    """Per output [unit/s²] (``trapezoidal``)."""
-    amplitude: list[float] | None = None
-    """Per output (``periodic``)."""
-    period: float | None = Field(default=None, gt=0)
-    """Period [s] (``periodic``)."""
-    offset: list[float] | None = None
-    """Centre per output (``periodic``; omitted: 0)."""
-    phase: list[float] | None = None
-    """Phase per output [rad] (``periodic``)."""
-    topic: str | None = None
-    """Topic of ``std_msgs/Float64MultiArray`` setpoints, one value per output (``topic``)."""
-
-    _list = field_validator('value', 'max_velocity', 'max_acceleration', 'amplitude', 'offset', 'phase',
-                            mode='before')(_as_list)
-
-    @field_validator('max_velocity', 'max_acceleration')
-    @classmethod
-    def _positive(cls, value: list[float] | None) -> list[float] | None:
-        if value is not None and any(v <= 0 for v in value):
-            raise ValueError('must be > 0')
-        return value
-
-    @model_validator(mode='after')
-    def _complete(self) -> 'Setpoint':
-        if self.kind in ('fixed', 'minimum_jerk', 'trapezoidal') and (self.value is None) == (self.pose is None):
-            raise ValueError(f"setpoint '{self.kind}' needs exactly one of value or pose")
-        if self.kind == 'periodic' and (self.amplitude is None or self.period is None):
-            raise ValueError("setpoint 'periodic' needs amplitude and period")
-        if self.kind == 'topic' and not self.topic:
-            raise ValueError("setpoint 'topic' needs a topic")
-        return self
+    kind: str
+    """How the setpoint moves, a registered setpoint generator: ``hold`` where the Task found it,
+    ``fixed``, ``minimum_jerk`` or ``trapezoidal`` towards ``value``/``pose``, ``periodic`` (a sine),
+    or read from a ``topic``; its fields follow."""
 
 
 class SetpointGeneratorEntity(FunctionalEntity):
     """Desired values y_d (and their velocity) for the Task's controller."""
 
-    class Parameters(Setpoint):
-        kind: Literal['hold', 'fixed', 'minimum_jerk', 'trapezoidal', 'periodic', 'topic'] = 'hold'
-        """How the setpoint moves (see :class:`Setpoint`)."""
+    class Parameters(SetpointBase):
+        kind: str = 'hold'
+        """How the setpoint moves, a registered setpoint generator (its fields follow)."""
         task: str = 'task'
         """The Task it belongs to."""
         tick_period: float = Field(default=0.01, gt=0)
@@ -117,7 +74,11 @@ class SetpointGeneratorEntity(FunctionalEntity):
         """The Task's outputs, as its Constraint Output selects them (none: all features)."""
 
     @classmethod
-    def port_specs(cls, params: Parameters) -> list[PortSpec]:
+    def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
+        return with_kind(cls.Parameters, SETPOINTS, field='kind', name=str(values.get('kind', 'hold')))
+
+    @classmethod
+    def port_specs(cls, params: Any) -> list[PortSpec]:
         return [
             task_port('features', 'input', 'Features', params.task),
             task_port('setpoint', 'output', 'Setpoint', params.task),
@@ -125,28 +86,14 @@ class SetpointGeneratorEntity(FunctionalEntity):
                      semantics=f'Progress({params.task})'),
         ]
 
-    def configure(self, params: Parameters) -> None:
+    def configure(self, params: Any) -> None:
         self.co = ConstraintOutput(list(params.outputs) or None)
         self._output_setpoint = OutputSetpoint()
-        self.kind = params.kind
-        target: Any = se3(params.pose.xyz, params.pose.rpy) if params.pose is not None \
-            else np.array(params.value or [0.0], dtype=float)
-        max_velocity = params.max_velocity
-        self.topic = params.topic or ''
-        generators: dict[str, Callable[[], SetpointGenerator]] = {
-            'hold': HoldSetpoint,
-            'fixed': lambda: FixedSetpoint(target),
-            'minimum_jerk': lambda: MinimumJerkSetpoint(target, duration=params.duration,
-                                                        max_velocity=max_velocity),
-            'trapezoidal': lambda: TrapezoidalSetpoint(
-                target, duration=params.duration, max_velocity=max_velocity or np.inf,
-                max_acceleration=params.max_acceleration or 1.0),
-            'periodic': lambda: PeriodicSetpoint(amplitude=params.amplitude or 0.0, period=params.period or 1.0,
-                                                 offset=params.offset or 0.0, phase=params.phase or 0.0),
-            'topic': TopicSetpoint,
-        }
-        self.generator = generators[self.kind]()
-        self._subscribe(self.topic if self.kind == 'topic' else '')
+        kind = SETPOINTS[params.kind]
+        self.generator = kind.generator(params)
+        self.source = kind.topic(params)
+        self._subscribe(self.source)
+        self.source = self.source or f'setpoint {params.kind}'
         self._ticks = getattr(self, '_ticks', None) or Ticks(params.tick_period)
         self._ticks.period = params.tick_period
         self._restart = True
@@ -162,8 +109,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
         self._subscription = current
 
     def _on_value(self, msg: Float64MultiArray) -> None:
-        if isinstance(self.generator, TopicSetpoint):
-            self.generator.push(np.asarray(msg.data, dtype=float))
+        self.generator.push(np.asarray(msg.data, dtype=float))  # type: ignore[attr-defined]  # a topic's kind
 
     def start(self) -> None:
         """Starting (also again, after a recovery from Safety): the next tick starts the setpoint
@@ -184,12 +130,11 @@ class SetpointGeneratorEntity(FunctionalEntity):
         value, velocity = self.generator(t)
         value, velocity = self._output_setpoint(value, velocity, selection=selection, rotation=features.rotation)
         names = selection.names
-        if self.kind == 'topic' and (np.shape(value) != (len(names),) or not np.isfinite(value).all()):
-            self.raise_event(SAFETY_EVENT, priority=True,
-                             detail=f"{self.topic}: setpoint {np.asarray(value).tolist()} is not "
-                                    f"{len(names)} finite values")
-            return
         value, velocity = np.asarray(value, dtype=float), np.asarray(velocity, dtype=float)
+        if not np.isfinite(value).all() or (self._subscription is not None and value.shape != (len(names),)):
+            self.raise_event(SAFETY_EVENT, priority=True,
+                             detail=f'{self.source}: setpoint {value.tolist()} is not {len(names)} finite values')
+            return
         if velocity.shape != value.shape:
             velocity = np.full(value.shape, velocity)
         self.outputs['setpoint'].write(SetpointSample(t, names, value, velocity))
