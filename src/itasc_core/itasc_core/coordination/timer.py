@@ -26,6 +26,22 @@ __all__ = ['Timer']
 SWITCH_SHARE = 1 / 20
 #: ... but no less than this (shorter intervals cost every thread more switches than they save).
 MIN_SWITCH_INTERVAL = 0.0005
+#: The switch interval each running Timer of this process asks for, and the interpreter's before the
+#: first. The interval is the process's: with several Timers (two applications in one process) the
+#: shortest asked for holds, never longer than it was, until the last Timer is gone.
+_asked: dict[int, float] = {}
+_before: list[float] = []
+
+
+def _ask_switch_interval(timer: int, interval: float | None) -> None:
+    """Timer ``timer`` asks for ``interval`` (None: it is gone); set the process's accordingly."""
+    if not _asked:
+        _before[:] = [sys.getswitchinterval()]
+    if interval is None:
+        _asked.pop(timer, None)
+    else:
+        _asked[timer] = interval
+    sys.setswitchinterval(min([_before[0], *_asked.values()]))
 
 
 class Timer(Entity):
@@ -39,8 +55,7 @@ class Timer(Entity):
         self.durations: deque[float] = deque(maxlen=window)
         self.stamps: deque[float] = deque(maxlen=window)
         self._timer = self.create_timer(1.0 / rate, self._tick)
-        self._switch_interval = sys.getswitchinterval()
-        sys.setswitchinterval(min(self._switch_interval, max(MIN_SWITCH_INTERVAL, SWITCH_SHARE / rate)))
+        _ask_switch_interval(id(self), max(MIN_SWITCH_INTERVAL, SWITCH_SHARE / rate))
 
     def _tick(self) -> None:
         start = time.monotonic()
@@ -57,5 +72,5 @@ class Timer(Entity):
 
     def destroy_node(self) -> None:
         self.destroy_timer(self._timer)
-        sys.setswitchinterval(self._switch_interval)
+        _ask_switch_interval(id(self), None)
         super().destroy_node()
