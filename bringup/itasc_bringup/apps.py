@@ -24,13 +24,9 @@ from itasc_core.composition.model import CompositeModel
 
 from .model import to_composition
 from .model.load import KEY, application_of
-from .model.locations import config_dirs, include_roots
+from .model.locations import config_dirs, include_roots, known_apps
 
 __all__ = ['resolve_app', 'load_composition', 'write_composition', 'check_model', 'known_apps']
-
-
-def known_apps() -> list[str]:
-    return sorted({p.stem for d in config_dirs() for p in (d / 'apps').glob('*.yaml')})
 
 
 def resolve_app(app: str) -> Path:

@@ -49,7 +49,7 @@ examples:
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    from .apps import known_apps
+    from .model.locations import known_apps
     apps = known_apps()
     parser = argparse.ArgumentParser(
         prog='bootstrap', description='Run an iTaSC application model.',

@@ -1,6 +1,7 @@
 """What a process that hosts only Tasks imports (``--deploy per-composite``): the Task entities and
 the composite host, but not the Solvers' qpsolvers and scipy.sparse (itasc_core.lazy); one that
-runs a Solver only its kind (the registry loads a kind when it is named); the
+runs a Solver only its kind (the registry loads a kind when it is named); ``bootstrap --help`` not
+the model schema; the
 re-exported names still resolve, and an unknown one is an AttributeError."""
 
 from __future__ import annotations
@@ -29,6 +30,16 @@ def test_a_process_running_the_wdls_solver_loads_only_that_kind():
                     'SolverEntity.parameters_of({"kind": "wdls", "damping": 0.2})\n'
                     'print(sorted(m for m in ("qpsolvers", "itasc_core.itasc.solver.qp") if m in sys.modules))')
     assert out.strip() == '[]'
+
+
+def test_the_bootstrap_lists_the_applications_without_building_the_model_schema():
+    out = _imported('import contextlib, io, sys\n'
+                    'from itasc_bringup.bootstrap import parse_args\n'
+                    'text = io.StringIO()\n'
+                    'with contextlib.redirect_stdout(text), contextlib.suppress(SystemExit):\n'
+                    '    parse_args(["--help"])\n'
+                    'print("approach_object" in text.getvalue(), "itasc_bringup.model.schema" in sys.modules)')
+    assert out.split() == ['True', 'False']  # --help names the shipped applications, in 0.15 s instead of 3 s
 
 
 def test_the_re_exported_names_resolve_on_first_use():

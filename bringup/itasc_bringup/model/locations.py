@@ -1,12 +1,12 @@
 """Where application models and robot descriptions live: ``config/`` in the share directory of
-itasc_bringup (installed), else the repository's ``config/`` (running from source); and which
-folders a model's includes may reach."""
+itasc_bringup (installed), else the repository's ``config/`` (running from source); the shipped
+applications; and which folders a model's includes may reach."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ['config_dirs', 'include_roots']
+__all__ = ['config_dirs', 'include_roots', 'known_apps']
 
 _REPO_CONFIG = Path(__file__).resolve().parents[3] / 'config'
 
@@ -22,6 +22,11 @@ def config_dirs() -> list[Path]:
     if _REPO_CONFIG.is_dir():
         dirs.append(_REPO_CONFIG)
     return dirs
+
+
+def known_apps() -> list[str]:
+    """The names of the shipped applications (``config/apps/<name>.yaml``)."""
+    return sorted({p.stem for d in config_dirs() for p in (d / 'apps').glob('*.yaml')})
 
 
 def include_roots(model: str | Path) -> tuple[Path, ...]:
