@@ -31,9 +31,20 @@ STEPS = [('itasc', 'alone'), ('itasc', 'back'), ('itasc/ApproachObject', 'soft')
          ('itasc', 'least_squares'), ('itasc', 'quadratic')]
 
 
+def as_kind(entity: dict, registry, kind: str, **changes) -> dict:
+    """``entity`` (a composition model's) made of another registered ``kind``: the fields only its
+    old kind has left out, the rest kept, ``changes`` applied."""
+    params = entity['parameters']
+    old, new = registry[params['kind']].Parameters.model_fields, registry[kind].Parameters.model_fields
+    kept = {key: value for key, value in params.items() if key not in old or key in new}
+    return {**entity, 'parameters': kept | {'kind': kind, **changes}}
+
+
 def model(directory: Path) -> Path:
     """pick_and_retreat's composition model with steps that undo each other (±inf written ±1e300)."""
     from itasc_bringup.apps import load_composition, write_composition
+    from itasc_core.itasc.solver.kind import SOLVERS
+    from itasc_tasks.controllers import CONTROLLERS
 
     data = load_composition('pick_and_retreat').model_dump(by_alias=True, exclude_defaults=True)
     program = next(e for e in data['entities'] if e['name'] == 'itasc')
@@ -45,14 +56,10 @@ def model(directory: Path) -> Path:
     program['composition_steps'] = {
         'alone': {'remove': ['AvoidObstacle']},
         'back': {'add': [avoid], 'connections': connections},
-        'least_squares': {'swap': [{**solver, 'parameters': {
-            key: value for key, value in solver['parameters'].items() if key not in ('backend', 'regularization')}
-            | {'kind': 'wdls'}}]},
+        'least_squares': {'swap': [as_kind(solver, SOLVERS, 'wdls')]},
         'quadratic': {'swap': [solver]}}
     task['composition_steps'] = {
-        'soft': {'swap': [{**controller, 'parameters': {
-            key: value for key, value in controller['parameters'].items() if key not in ('ki', 'kd', 'max_integral')}
-            | {'kind': 'p', 'kp': 1.0}}]},
+        'soft': {'swap': [as_kind(controller, CONTROLLERS, 'p', kp=1.0)]},
         'stiff': {'swap': [controller]}}
     return write_composition(data, directory / 'pick_and_retreat.yaml')
 

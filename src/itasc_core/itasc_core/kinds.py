@@ -14,6 +14,7 @@ file and one registration line. Nothing is imported before a model names the cat
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 from importlib.metadata import EntryPoint, EntryPoints, entry_points
 from typing import Annotated, Any, Generic, Literal, TypeVar, Union, cast
 
@@ -119,12 +120,17 @@ class _Context(dict[str, int | str | float]):
         return hash(tuple(sorted(self.items())))
 
 
+def with_kind(base: type[M], registry: Registry[Any], *, field: str, values: Mapping[str, Any]) -> type[M]:
+    """An entity's parameters ``base`` with those of the kind ``values`` name in ``field`` (else
+    ``base``'s default kind; UnknownKind if not registered), ``field`` fixed to it: how an entity
+    whose parameters depend on its kind (a chain's type, a Monitor's condition, a controller's law)
+    validates them. The kind is read-only as a ROS parameter: another kind is another entity (a
+    composition step swaps it)."""
+    return _with_kind(base, registry, field, str(values.get(field, base.model_fields[field].default)))
+
+
 @functools.cache
-def with_kind(base: type[M], registry: Registry[Any], *, field: str, name: str) -> type[M]:
-    """An entity's parameters ``base`` with those of the kind ``name`` (UnknownKind if not
-    registered), ``field`` fixed to it: how an entity whose parameters depend on its kind (a chain's
-    type, a Monitor's condition, a controller's law) validates them. The kind is read-only as a ROS
-    parameter: another kind is another entity (a composition step swaps it)."""
+def _with_kind(base: type[M], registry: Registry[Any], field: str, name: str) -> type[M]:
     kind = registry[name]
     fields: dict[str, Any] = {field: (Literal[name], Field(name, description=base.model_fields[field].description,
                                                           frozen=True))}

@@ -71,7 +71,7 @@ class Monitor(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return with_kind(cls.Parameters, CONDITIONS, field='condition', name=str(values.get('condition', 'above')))
+        return with_kind(cls.Parameters, CONDITIONS, field='condition', values=values)
 
     def __init__(self, name: str, *, composite: CompositeContext, parameters: dict[str, Any] | None = None,
                  watch: PortSpec | None = None) -> None:

@@ -61,7 +61,7 @@ class ConstraintControllerEntity(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return with_kind(cls.Parameters, CONTROLLERS, field='kind', name=str(values.get('kind', 'pid')))
+        return with_kind(cls.Parameters, CONTROLLERS, field='kind', values=values)
 
     @classmethod
     def port_specs(cls, params: Any) -> list[PortSpec]:

@@ -75,7 +75,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return with_kind(cls.Parameters, SETPOINTS, field='kind', name=str(values.get('kind', 'hold')))
+        return with_kind(cls.Parameters, SETPOINTS, field='kind', values=values)
 
     @classmethod
     def port_specs(cls, params: Any) -> list[PortSpec]:

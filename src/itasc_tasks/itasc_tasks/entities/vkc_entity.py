@@ -43,7 +43,7 @@ class VKCEntity(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return with_kind(cls.Parameters, TASK_TYPES, field='type', name=str(values.get('type', 'cartesian')))
+        return with_kind(cls.Parameters, TASK_TYPES, field='type', values=values)
 
     @classmethod
     def port_specs(cls, params: Any) -> list[PortSpec]:

@@ -91,7 +91,7 @@ class SolverEntity(FunctionalEntity):
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:
-        return with_kind(cls.Parameters, SOLVERS, field='kind', name=str(values.get('kind', 'wdls')))
+        return with_kind(cls.Parameters, SOLVERS, field='kind', values=values)
 
     @classmethod
     def port_specs(cls, params: Any) -> list[PortSpec]:
