@@ -58,6 +58,27 @@ def test_the_reference_documents_every_field_and_every_kind():
                  'kind: minimum_jerk', 'kind: hold', 'kind: topic'):
         assert f'**{kind}**' in text
     assert 'NearMonitor' not in text and 'HorizontalDistanceTask' not in text  # the test package's kinds
+    assert 'No shipped model uses it yet' not in text  # every kind has an example: a shipped one, or its own
+
+
+def test_the_examples_kinds_give_are_sections_the_model_takes():
+    from pydantic import TypeAdapter
+
+    from itasc_bringup.model import schema
+    sections = {'itasc.task_types': schema.Task, 'itasc.conditions': schema.Monitor,
+                'itasc.controllers': schema.Controller, 'itasc.setpoint_generators': schema.Setpoint,
+                'itasc.drivers': schema.Driver, 'itasc.solvers': schema.Solver}
+    checked = []
+    for registry, field, _ in schema.KIND_SECTIONS:
+        for name, kind in registry.kinds().items():
+            example = getattr(kind, 'example', None)
+            if example is None:
+                continue
+            value = TypeAdapter(sections[registry.group]).validate_python(yaml.safe_load(example))
+            assert getattr(value, field) == name
+            checked.append(name)
+    assert {'fixed', 'hold', 'periodic', 'topic', 'trapezoidal', 'point_plane', 'inside', 'stale', 'nonfinite'} <= \
+        set(checked)
 
 
 def test_check_validates_without_starting_anything(tmp_path):

@@ -198,11 +198,24 @@ def _section(name: str, path: str, spec: dict[str, Any], examples: dict[tuple[st
     for key, prop in spec.get('properties', {}).items():
         if key in KIND_FIELDS:
             for value in _enum(prop):
-                example = examples.get((key, value))
+                example = examples.get((key, value)) or _kind_example(name)
                 lines += [f'**{key}: {value}**', '']
-                lines += (['```yaml', example, '```', ''] if example
-                          else ['No shipped model uses it yet.', ''])
+                if example:
+                    lines += ['```yaml', example, '```', '']
+                elif prop.get('default') == value:
+                    lines += [f'The default: a section without `{key}`.', '']
+                else:
+                    lines += ['No shipped model uses it yet.', '']
     return lines
+
+
+def _kind_example(section: str) -> str | None:
+    """The ``example`` the registered kind of ``section`` gives, where no shipped model has one."""
+    for registry, _, suffix in KIND_SECTIONS:
+        for kind in registry.kinds().values():
+            if f'{kind.__name__}{suffix}' == section and getattr(kind, 'example', None):
+                return f'# the example of {kind.__module__}.{kind.__name__}\n{kind.example.strip()}'
+    return None
 
 
 def _type(prop: dict[str, Any]) -> str:

@@ -8,7 +8,9 @@ registered through Python entry points, one group per category (``itasc.task_typ
 ``itasc.conditions``, ``itasc.controllers``, ``itasc.setpoint_generators``, ``itasc.solvers``,
 ``itasc.drivers``), the way launch_ros and colcon find their extensions: this project's own
 kinds in its packages' ``setup.py``, kinds of other packages in theirs. Adding a kind is one new
-file and one registration line. Nothing is imported before a model names the category.
+file and one registration line. Nothing is imported before a model names the category. A kind
+may give an ``example`` (its section in YAML), which ``docs/model.md`` shows where no shipped
+model uses the kind.
 """
 
 from __future__ import annotations

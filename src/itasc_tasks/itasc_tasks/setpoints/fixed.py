@@ -12,6 +12,7 @@ class Fixed(SetpointKind):
     """A constant target, ``value`` or ``pose``."""
 
     Parameters = Target
+    example = '{kind: fixed, value: [0.05]}'
 
     @classmethod
     def generator(cls, params: Target) -> FixedSetpoint:

@@ -12,6 +12,7 @@ __all__ = ['Hold']
 
 class Hold(SetpointKind):
     """Hold the output where the Task found it (each time it is activated)."""
+    example = '{kind: hold}'
 
     @classmethod
     def generator(cls, params: Any) -> HoldSetpoint:

@@ -29,6 +29,7 @@ class Periodic(SetpointKind):
     """A sine per output: ``offset + amplitude sin(2 pi t / period + phase)``."""
 
     Parameters = Sine
+    example = '{kind: periodic, amplitude: [0.1], period: 4.0}'
 
     @classmethod
     def generator(cls, params: Sine) -> PeriodicSetpoint:

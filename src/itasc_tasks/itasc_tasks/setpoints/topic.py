@@ -23,6 +23,7 @@ class Topic(SetpointKind):
     puts the Task in Safety."""
 
     Parameters = FromTopic
+    example = '{kind: topic, topic: /approach/setpoint}'
 
     @classmethod
     def generator(cls, params: FromTopic) -> TopicSetpoint:

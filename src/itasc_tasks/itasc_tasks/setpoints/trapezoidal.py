@@ -30,6 +30,7 @@ class Trapezoidal(SetpointKind):
     ``max_velocity`` and ``max_acceleration``, stretched to ``duration``."""
 
     Parameters = TrapezoidalMotion
+    example = '{kind: trapezoidal, value: [0.3], max_velocity: 0.1, max_acceleration: 0.5}'
 
     @classmethod
     def generator(cls, params: TrapezoidalMotion) -> TrapezoidalSetpoint:

@@ -43,6 +43,8 @@ class PointPlane(TaskType):
     """The signed distance of o2's origin to the plane through o1 normal to ``normal``: ``distance``."""
 
     Parameters = PlaneChain
+    example = ('{name: AboveTable, type: point_plane, o1: table, o2: panda/panda_hand, normal: [0, 0, 1],\n'
+               ' constraint: inequality, d_min: 0.05}')
 
     @classmethod
     def chain(cls, params: PlaneChain) -> PointPlaneVKC:

@@ -74,6 +74,7 @@ class Stale(Condition):
 
     Parameters = StaleParameters
     params: StaleParameters
+    example = '{name: setpoint_silent, watch: Approach.setpoint, condition: stale, timeout: 0.2, event: e_emergency}'
     reads_values = False
 
     def holds(self, values: Sequence[float] | None, *, age: float, seen: bool = True) -> bool:
@@ -83,6 +84,8 @@ class Stale(Condition):
 
 class NonFinite(Condition):
     """Any watched value is not finite (NaN, infinite)."""
+
+    example = '{name: broken_output, watch: Approach.output, condition: nonfinite, event: e_emergency}'
 
     def holds(self, values: Sequence[float] | None, *, age: float, seen: bool = True) -> bool:
         return values is not None and any(not math.isfinite(v) for v in values)

@@ -15,6 +15,7 @@ class Inside(Condition):
     """Every watched value is inside ``band`` (bounds included)."""
 
     Parameters = Band
+    example = '{name: arrived, watch: Approach.error_norm, condition: inside, band: [0.0, 0.005], event: e_arrived}'
     params: Band
 
     def holds(self, values: Sequence[float] | None, *, age: float, seen: bool = True) -> bool:
