@@ -106,6 +106,8 @@ class SimulatedRobot(FunctionalEntity):
 
     def _own(self, command: JointSample) -> np.ndarray:
         """This robot's joint velocities in a command (by name; joints it does not name: 0)."""
+        if command.name == self._names and len(command.velocity) == len(command.name):
+            return command.velocity  # the Solver's order is this robot's (one robot): no reordering
         if command.name != self._order[0]:
             where = {n: i for i, n in enumerate(command.name)}
             # a missing joint reads the appended 0

@@ -94,6 +94,7 @@ class PointToPoint:
         self._from: Value = self.target
         self._t0 = 0.0
         self._delta = np.zeros(0)  # vector: target - start; SE3: [dp, log3(R0^T R1)]
+        self._twist = np.zeros(0)
         self.period = 0.0  # actual duration of the current motion
 
     def restart(self) -> None:
@@ -106,6 +107,7 @@ class PointToPoint:
             a, b = self._from, self.target
             self._delta = np.concatenate([b.translation - a.translation,
                                           pin.log3(a.rotation.T @ b.rotation)])
+            self._twist = np.concatenate([self._delta[:3], a.rotation @ self._delta[3:]])  # of o2 in o1, per unit of s
             lengths = np.array([np.linalg.norm(self._delta[:3]), np.linalg.norm(self._delta[3:])])
         else:
             self._delta = self.target - self._from
@@ -131,7 +133,7 @@ class PointToPoint:
         if isinstance(self._from, pin.SE3):
             a, d = self._from, self._delta
             pose = pin.SE3(a.rotation @ pin.exp3(s * d[3:]), a.translation + s * d[:3])
-            return pose, sdot * np.concatenate([d[:3], a.rotation @ d[3:]])
+            return pose, sdot * self._twist
         return self._from + s * self._delta, sdot * self._delta
 
 

@@ -40,17 +40,34 @@ class PIDController(ConstraintController):
         self._output = np.zeros(0)
 
     def __call__(self, error: np.ndarray, feedforward: np.ndarray | float, dt: float) -> np.ndarray:
-        if self.integral is None or self.integral.shape != error.shape:
-            self.integral = np.zeros_like(error)
-        free = np.abs(self._output) < self.max_output if self._output.shape == error.shape else True
-        self.integral = np.clip(self.integral + np.where(free, error * dt, 0.0),
-                                -np.asarray(self.max_integral), self.max_integral)
-        rate = (error - self._previous) / dt if self._previous is not None and dt > 0 else 0.0
+        integral = self.integral if self.integral is not None and self.integral.shape == error.shape \
+            else np.zeros_like(error)
+        step = error * dt
+        if _limits(self.max_output) and self._output.shape == error.shape:
+            step[np.abs(self._output) >= self.max_output] = 0.0  # frozen where the output saturated
+        integral = integral + step
+        if _limits(self.max_integral):
+            integral = np.minimum(np.maximum(integral, -np.asarray(self.max_integral)), self.max_integral)
+        self.integral = integral
+        out = feedforward + self.kp * error
+        if _acts(self.ki):
+            out += self.ki * integral
+        if _acts(self.kd) and self._previous is not None and dt > 0:
+            out += self.kd * ((error - self._previous) / dt)
         self._previous = error.copy()
-        self._output = saturate(feedforward + self.kp * error + self.ki * self.integral + self.kd * rate,
-                                self.max_output)
+        self._output = saturate(out, self.max_output)
         return self._output
 
     def reset(self) -> None:
         self.integral, self._previous = None, None
         self._output = np.zeros(0)
+
+
+def _limits(bound: float | np.ndarray) -> bool:
+    """Whether ``bound`` limits anything (an infinite float does not)."""
+    return not (isinstance(bound, float) and math.isinf(bound))
+
+
+def _acts(gain: float | np.ndarray) -> bool:
+    """Whether a term with ``gain`` adds anything (a zero float adds nothing; a call per tick saved)."""
+    return not (isinstance(gain, (int, float)) and gain == 0)
