@@ -23,7 +23,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ['encoder']
+__all__ = ['encoder', 'serialize']
 
 Encode = Callable[[Any], bytes]
 #: ``op(out, obj, last) -> last``: writes one field; ``last`` is Fast CDR's "last data size", which
@@ -163,6 +163,17 @@ def _compile(cls: type) -> Encode | None:
             last = op(out, obj, last)
         return bytes(out)
     return encode
+
+
+def serialize(obj: Any) -> bytes:
+    """The CDR bytes of a sample or a ROS message: by its compiled encoder, else by rclpy."""
+    encode = encoder(type(obj))
+    if encode is not None:
+        return encode(obj)
+    from rclpy.serialization import serialize_message
+
+    from itasc_core.communication.samples import as_message
+    return serialize_message(as_message(obj))
 
 
 def message_class(type_name: str) -> type:

@@ -11,7 +11,8 @@ Topics known from the model are recorded from the start: :meth:`Recorder.record_
 subscribes to every data-flow topic of a composition model, and :meth:`Recorder.record` to any
 other topic (a composite's event and state topics), before any publisher exists, so the first
 tick is in the recording. Other topics are discovered: every ``scan_period`` the node looks at
-the ROS graph and subscribes to each new topic under ``prefix`` with a QoS that matches its
+the ROS graph and subscribes to new topics under ``prefix`` (a few per scan:
+:data:`QUERIES_PER_SCAN`) with a QoS that matches its
 publishers: keep-last ``depth``, reliable unless a publisher is best effort, transient local when
 all publishers offer it (the Coordinators' latched ``.../state`` topics, the event topics). A
 publisher that appears later and that no reader of the topic matches (a volatile one where the
@@ -40,6 +41,7 @@ can still salvage the data.
 from __future__ import annotations
 
 import atexit
+import collections
 import functools
 import importlib
 import os
@@ -54,14 +56,13 @@ from typing import Any
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
-from itasc_core.communication.samples import as_message
 
 from ..observe import Observer
 from .bag import qos_profiles
-from .cdr import encoder
+from .cdr import serialize
 from .definitions import DefinitionNotFound, definition
 from .duplicates import Duplicates
 from .writer import BagProcess
@@ -85,6 +86,13 @@ def _matches(reader: QoSProfile, writer: QoSProfile) -> bool:
 def _under(topic: str, prefix: str) -> bool:
     prefix = '/' + prefix.strip('/')
     return prefix == '/' or topic == prefix or topic.startswith(prefix + '/')
+
+
+#: The most graph queries one scan makes. rclpy holds the interpreter in each (~0.1 ms), and a
+#: control loop ticks in the same process: looking at all of an application's ~40 topics at once
+#: took 4 ms, several ticks at 1 kHz. A scan looks for new topics and at the publishers of a few
+#: recorded ones; a round over all of them takes several scans.
+QUERIES_PER_SCAN = 4
 
 
 class Recorder(Node):
@@ -112,6 +120,11 @@ class Recorder(Node):
         self._readers: dict[str, list[QoSProfile]] = {}
         #: topic -> its publishers when they were last matched against its readers
         self._publisher_counts: dict[str, int] = {}
+        #: the topics this round of scans has yet to look at again: recorded ones (a publisher none
+        #: of their readers matches?) and idle ones (a publisher yet?)
+        self._round: collections.deque[str] = collections.deque()
+        #: topics under ``prefix`` that had only subscribers when last looked at
+        self._idle: set[str] = set()
         #: topics taken by several readers -> the copies to drop
         self._duplicates: dict[str, Duplicates] = {}
         self._listeners: list[Callable[[str], None]] = []
@@ -155,24 +168,24 @@ class Recorder(Node):
         if self._closed:
             return
         self.drain()
+        listed = self.get_topic_names_and_types()
+        budget = QUERIES_PER_SCAN - 1
+        for topic, types in listed:
+            if budget <= 0:
+                break
+            if topic not in self._readers and topic not in self._idle and topic not in self._skipped \
+                    and topic not in self.exclude and _under(topic, self.prefix):
+                budget -= self._discover(topic, types)
+        # a round over the recorded topics and those without a publisher, a few per scan
         tapped = self._observer.tapped
-        for topic, types in self.get_topic_names_and_types():
-            if topic in self._readers:
-                if topic not in tapped:
-                    self._match_new_publishers(topic)
-                continue
-            if topic in self.topics or topic in self._skipped or topic in self.exclude:
-                continue
-            if not _under(topic, self.prefix):
-                continue
-            publishers = self.get_publishers_info_by_topic(topic)
-            if not publishers:
-                continue  # only subscribers so far: nothing to record, look again later
-            if len(types) > 1:
-                self.get_logger().warning(
-                    f'{topic} has several types {types}; recording {types[0]}')
-            self._subscribe(topic, types[0], qos=self._qos(publishers),
-                            offered=[p.qos_profile for p in publishers])
+        if not self._round:
+            self._round.extend(topic for topic, _ in listed if topic in self._readers or topic in self._idle)
+        while self._round and budget > 0:
+            topic = self._round.popleft()
+            if topic in self._idle:
+                self._idle.discard(topic)  # looked at again by the next scan's discovery
+            elif self._readers.get(topic) and topic not in tapped:  # read over DDS
+                budget -= self._match_new_publishers(topic)
         if time.monotonic() - self._last_flush >= self._flush_period:
             self._last_flush = time.monotonic()
             with self._lock:
@@ -186,9 +199,7 @@ class Recorder(Node):
             return
         pending, self._pending = self._pending, []
         for topic, channel_id, tapped_at, sample in pending:
-            encode = encoder(type(sample))
-            data = encode(sample) if encode is not None else serialize_message(as_message(sample))
-            self._write(topic, channel_id, data, sent=tapped_at, reader=0, received=tapped_at)
+            self._write(topic, channel_id, serialize(sample), sent=tapped_at, reader=0, received=tapped_at)
 
     def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]
@@ -201,17 +212,29 @@ class Recorder(Node):
                          else ReliabilityPolicy.RELIABLE),
             durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
-    def _match_new_publishers(self, topic: str) -> None:
-        """Give ``topic`` a volatile reader for publishers that none of its readers matches."""
+    def _discover(self, topic: str, types: list[str]) -> int:
+        """Record a topic not recorded yet, if it has publishers; the number of graph queries this took."""
+        publishers = self.get_publishers_info_by_topic(topic)
+        if not publishers:
+            self._idle.add(topic)  # only subscribers so far: nothing to record, look again later
+            return 1
+        if len(types) > 1:
+            self.get_logger().warning(f'{topic} has several types {types}; recording {types[0]}')
+        self._subscribe(topic, types[0], qos=self._qos(publishers), offered=[p.qos_profile for p in publishers])
+        return 2
+
+    def _match_new_publishers(self, topic: str) -> int:
+        """Give ``topic`` a volatile reader for publishers that none of its readers matches; the
+        number of graph queries this took."""
         count = self.count_publishers(topic)
         if count == self._publisher_counts.get(topic):
-            return
+            return 1
         self._publisher_counts[topic] = count
         readers = self._readers[topic]
         unmatched = [p for p in self.get_publishers_info_by_topic(topic)
                      if not any(_matches(reader, p.qos_profile) for reader in readers)]
         if not unmatched:
-            return
+            return 2
         # volatile: a transient-local reader added now would bring in again what was written
         qos = self._qos(unmatched)
         qos.durability = DurabilityPolicy.VOLATILE
@@ -219,6 +242,7 @@ class Recorder(Node):
         self._add_reader(topic, qos)
         self.get_logger().info(f'{topic}: a {qos.reliability.name.lower()} volatile reader more, for '
                                f'{", ".join(f"{p.node_namespace}/{p.node_name}" for p in unmatched)}')
+        return 2
 
     def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile]) -> None:
         try:

@@ -36,11 +36,12 @@ from typing import Any
 from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from itasc_core.communication.ports import LocalBus
-from itasc_core.communication.samples import as_message
 from itasc_msgs.msg import Features, TaskState
+
+from ..recording.cdr import serialize
 
 __all__ = ['LatestSamples', 'FeedWriter', 'FeedReader', 'display_topics', 'LATEST_QOS']
 
@@ -137,7 +138,7 @@ class FeedWriter:
         changed = {topic: msg for topic, msg in self._samples.items() if self._sent.get(topic) is not msg}
         if not changed:
             return
-        payload = pickle.dumps({topic: serialize_message(as_message(msg)) for topic, msg in changed.items()},
+        payload = pickle.dumps({topic: serialize(msg) for topic, msg in changed.items()},
                                protocol=pickle.HIGHEST_PROTOCOL)
         frame = _LENGTH.pack(len(payload)) + payload
         rest = self._write(frame)
