@@ -23,7 +23,7 @@ from itasc_core.communication.events import EventListener
 from itasc_core.entity import CompositeContext
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
-from itasc_core.communication.samples import as_message, as_sample
+from itasc_core.communication.samples import JointSample, as_message, as_sample
 from itasc_core.itasc.entities.messages import FeaturesSample, stamp
 from itasc_drivers.fake_ros2_control import PANDA, PANDA_READY, FakeRos2Control
 from itasc_drivers.pose_sensor import PoseSensor
@@ -131,6 +131,23 @@ def test_robot_entity_maps_joints_by_name_and_reports_missing_ones(world):
     robot.update(0.01)
     assert robot.outputs['joint_state'].last is None
     assert world.spin_until(lambda: 'e_panda_joints_missing' in world.seen)
+
+
+def test_every_relation_of_the_scene_is_written_also_when_two_relate_the_same_frames(world):
+    """Two Tasks relating the same frames (computed once a tick) each get that relation, a third its own."""
+    scene = world.entity(SceneEntity, 'Scene',
+                         robots={'panda': {'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}}},
+                         objects={'target': {'xyz': [0.45, 0.1, 0.3]}, 'obstacle': {'xyz': [0.4, -0.1, 0.5]}},
+                         relations={'Approach': {'o1': 'target', 'o2': 'panda/tcp'},
+                                    'Retreat': {'o1': 'target', 'o2': 'panda/tcp'},
+                                    'Avoid': {'o1': 'obstacle', 'o2': 'panda/tcp'}})
+    scene.inputs['joint_state_panda'].deliver(JointSample(0.0, tuple(PANDA), np.array(PANDA_READY)), 'x')
+    scene.update(0.5)
+    for task, o1 in (('Approach', 'target'), ('Retreat', 'target'), ('Avoid', 'obstacle')):
+        sample = scene.outputs[f'relation_{task}'].last
+        pose = scene.scene.relative_pose(o1, 'panda/tcp')
+        assert sample.t == 0.5 and np.allclose(sample.value[:3], pose.translation), task
+        assert np.allclose(sample.jacobian, scene.scene.relative_jacobian(o1, 'panda/tcp')), task
 
 
 def _program(world, *, setpoint: dict, weights=(1.0,)):

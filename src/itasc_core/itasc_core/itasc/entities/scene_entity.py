@@ -164,7 +164,12 @@ class SceneEntity(FunctionalEntity):
         self._joint_names = tuple(scene.joint_names)
         self._robots = [(self.inputs[f'joint_state_{name}'], robot, tuple(robot.joint_names))
                         for name, robot in scene.robots.items()]
-        self._relations = [(self.outputs[f'relation_{name}'], o1, o2) for name, o1, o2 in self.relations]
+        # one computation per pair of frames, whichever Tasks read it (Retreat and ApproachObject both
+        # relate the TCP to the grasp frame)
+        pairs: dict[tuple[str, str], list] = {}
+        for name, o1, o2 in self.relations:
+            pairs.setdefault((o1, o2), []).append(self.outputs[f'relation_{name}'])
+        self._relations = [(o1, o2, outputs) for (o1, o2), outputs in pairs.items()]
 
     def update(self, t: float) -> None:
         for port, _, _ in self._robots:
@@ -190,10 +195,12 @@ class SceneEntity(FunctionalEntity):
         scene.update(t)
         joints = self._joint_names
         self.outputs['joint_state'].write(JointSample(t, joints, scene.q.copy()))
-        for output, o1, o2 in self._relations:
+        for o1, o2, outputs in self._relations:
             pose = scene.relative_pose(o1, o2)
-            output.write(FeaturesSample(t, POSE_FEATURES, joints, pose_features(pose, coordinates='xyz_log3'),
-                                        scene.relative_jacobian(o1, o2), rotation=3, pose=pose))
+            sample = FeaturesSample(t, POSE_FEATURES, joints, pose_features(pose, coordinates='xyz_log3'),
+                                    scene.relative_jacobian(o1, o2), rotation=3, pose=pose)
+            for output in outputs:
+                output.write(sample)
 
     def fault_persists(self) -> str | None:
         """Before a recovery from Safety: is a sensed pose still not finite (or its quaternion zero)?"""
