@@ -59,7 +59,6 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
-
 from ..observe import Observer
 from .bag import qos_profiles
 from .cdr import serialize

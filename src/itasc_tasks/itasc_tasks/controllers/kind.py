@@ -10,7 +10,7 @@ from itasc_core.computation.parameters import ParameterModel
 from itasc_core.kinds import Registry
 from pydantic import Field
 
-__all__ = ['ConstraintController', 'CONTROLLERS', 'Gains', 'saturate']
+__all__ = ['ConstraintController', 'CONTROLLERS', 'Gains', 'limits', 'saturate']
 
 
 class Gains(ParameterModel):
@@ -47,8 +47,14 @@ CONTROLLERS: Registry[ConstraintController] = Registry('itasc.controllers', what
                                                        base=ConstraintController)
 
 
+def limits(bound: float | np.ndarray) -> bool:
+    """Whether ``bound`` (a saturation, a bound of the integral) limits anything: an infinite
+    float does not."""
+    return not (isinstance(bound, float) and math.isinf(bound))
+
+
 def saturate(out: np.ndarray, limit: float | np.ndarray) -> np.ndarray:
     """``out`` clipped to ``[-limit, limit]`` per component (an infinite float: no limit)."""
-    if isinstance(limit, float) and math.isinf(limit):
+    if not limits(limit):
         return out
     return np.minimum(np.maximum(out, -np.asarray(limit)), limit)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from pydantic import Field
 
-from .kind import ConstraintController, Gains, saturate
+from .kind import ConstraintController, Gains, limits, saturate
 
 __all__ = ['PIDController', 'PIDGains']
 
@@ -43,10 +43,10 @@ class PIDController(ConstraintController):
         integral = self.integral if self.integral is not None and self.integral.shape == error.shape \
             else np.zeros_like(error)
         step = error * dt
-        if _limits(self.max_output) and self._output.shape == error.shape:
+        if limits(self.max_output) and self._output.shape == error.shape:
             step[np.abs(self._output) >= self.max_output] = 0.0  # frozen where the output saturated
         integral = integral + step
-        if _limits(self.max_integral):
+        if limits(self.max_integral):
             integral = np.minimum(np.maximum(integral, -np.asarray(self.max_integral)), self.max_integral)
         self.integral = integral
         out = feedforward + self.kp * error
@@ -61,11 +61,6 @@ class PIDController(ConstraintController):
     def reset(self) -> None:
         self.integral, self._previous = None, None
         self._output = np.zeros(0)
-
-
-def _limits(bound: float | np.ndarray) -> bool:
-    """Whether ``bound`` limits anything (an infinite float does not)."""
-    return not (isinstance(bound, float) and math.isinf(bound))
 
 
 def _acts(gain: float | np.ndarray) -> bool:
