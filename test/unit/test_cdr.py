@@ -67,3 +67,13 @@ def test_a_samples_cdr_bytes_decode_to_its_message(sample, store):
             assert theirs == ours
         else:
             assert np.array_equal(np.asarray(theirs), np.asarray(ours)), field
+
+
+def test_an_encoder_follows_its_samples_when_their_names_and_sizes_change():
+    """The encoder keeps a template per shape (name lists by identity, sizes): a new name list of
+    the same size, a new size, and more shapes than it keeps each decode to their own message."""
+    encode = encoder(SetpointSample)
+    for k in range(200):
+        names = (f'x{k}', f'y{k}', f'z{k}') if k < 100 else tuple(f'n{k}_{i}' for i in range(k % 7))
+        sample = SetpointSample(k * 0.5, names, np.arange(len(names), dtype=float), np.full(len(names), k))
+        assert deserialize_message(encode(sample), type(as_message(sample))) == as_message(sample), k

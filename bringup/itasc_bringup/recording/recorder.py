@@ -197,8 +197,8 @@ class Recorder(Node):
         if not self._pending:
             return
         pending, self._pending = self._pending, []
-        for topic, channel_id, tapped_at, sample in pending:
-            self._write(topic, channel_id, serialize(sample), sent=tapped_at, reader=0, received=tapped_at)
+        self._write_all([(topic, channel_id, serialize(sample), tapped_at, 0, tapped_at)
+                         for topic, channel_id, tapped_at, sample in pending])
 
     def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]
@@ -293,23 +293,30 @@ class Recorder(Node):
         messages of different topics by it, since a busy recorder may take one topic's messages
         later than another's."""
         stamp = time.time_ns() if received is None else received
-        data = bytes(data)
+        self._write_all([(topic, channel_id, bytes(data), sent, reader, stamp)])
+
+    def _write_all(self, messages: list[tuple[str, int, bytes, int | None, int, int]]) -> None:
+        """Write each ``(topic, channel, data, sent, reader, received)`` (see :meth:`_write`)."""
+        written = []
         with self._lock:
             if self._closed:
                 return
-            duplicates = self._duplicates.get(topic)
-            if duplicates is not None and not duplicates.new(data, reader=reader):
-                return
             self._owner = threading.get_ident()
             try:
-                self._bag.write(channel_id, data, time_ns=stamp, publish_time_ns=sent)
-                self.counts[topic] += 1
-                self._last[topic] = data
+                for topic, channel_id, data, sent, reader, received in messages:
+                    duplicates = self._duplicates.get(topic)
+                    if duplicates is not None and not duplicates.new(data, reader=reader):
+                        continue
+                    self._bag.write(channel_id, data, time_ns=received, publish_time_ns=sent)
+                    self.counts[topic] += 1
+                    self._last[topic] = data
+                    written.append(topic)
             finally:
                 self._owner = None
-        for listener in self._listeners:
-            listener(topic)
-        if self._pending_interrupt:  # a signal arrived during the write above
+        for topic in written:
+            for listener in self._listeners:
+                listener(topic)
+        if self._pending_interrupt:  # a signal arrived during the writes above
             self.close()
             raise KeyboardInterrupt
 
