@@ -105,13 +105,18 @@ class FusedProgram:
         return self.solver.solve(rows, q=scene.q, lower=scene.lower, upper=scene.upper,
                                  velocity_limit=scene.velocity_limit, dt=dt).qdot
 
-    def time_steps(self, *, steps: int, dt: float) -> tuple[list[float], list[float]]:
+    def time_steps(self, *, steps: int, dt: float, paced: bool = False) -> tuple[list[float], list[float]]:
         """Run ``steps`` closed-loop steps (the joints integrated kinematically); the seconds each
-        full step and each solve alone took."""
+        full step and each solve alone took. ``paced``: one step every ``dt`` seconds, sleeping in
+        between as a control loop's timer does, instead of back to back."""
         q = self.initial.copy()
         full, solve = [], []
         scene = self.scene
+        due = time.monotonic()
         for k in range(steps):
+            if paced:
+                due += dt
+                time.sleep(max(0.0, due - time.monotonic()))
             t = k * dt
             start = time.perf_counter()
             scene.set_position_vector(q)

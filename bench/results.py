@@ -22,13 +22,14 @@ def _ratio(value) -> str:
 def _row(what: str, r: dict) -> str:
     return (f"| {what} | {r['achieved_hz']:.1f} | {_us(r['tick_p50_us'])} | {_us(r['tick_p99_us'])} | "
             f"{_us(r.get('qp_p50_us'))} | {_us(r.get('solver_p50_us'))} | {_ratio(r.get('tick_over_solver'))} | "
+            f"{_us(r.get('solver_paced_p50_us'))} | {_ratio(r.get('tick_over_solver_paced'))} | "
             f"{_us(r.get('handwritten_p50_us'))} | {_ratio(r.get('tick_over_handwritten'))} | "
             f"{_s(r.get('bring_up_s'))} | {_s(r.get('start_to_running_s'))} | {r['load_before']:.1f} |")
 
 
 HEADER = ('| run | achieved Hz | tick p50 µs | tick p99 µs | QP p50 µs (in the app) | solver step p50 µs | '
-          'tick / solver step | hand-written p50 µs | tick / hand-written | up after s (rclpy.init) | '
-          'up after s (process start) | load |\n|' + '---|' * 12)
+          'tick / solver step | solver step paced p50 µs | tick / paced step | hand-written p50 µs | '
+          'tick / hand-written | up after s (rclpy.init) | up after s (process start) | load |\n|' + '---|' * 14)
 
 
 def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Path) -> None:
@@ -43,7 +44,10 @@ def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Pat
         '',
         'Every application run goes through the bootstrap (`python -m itasc_bringup.bootstrap APP --rate HZ '
         '--duration S`, console and visualization included). *Solver step*: the Scene update, every active Task\'s '
-        'rows and the QP on the same problem, as one plain computation (`bench/fused.py`), timed in the same run. '
+        'rows and the QP on the same problem, as one plain computation (`bench/fused.py`), timed in the same run: '
+        'back to back, and *paced* at the requested rate, one step a period with a sleep in between, as a control '
+        'loop runs (on these VMs a step after a pause of a period takes up to twice as long as one right after '
+        'another). '
         '*Hand-written*: one rclpy node reading `joint_states` from a simulated driver in another process, running '
         'that same step and publishing the command (`bench/handwritten.py`), same run.',
         '',
@@ -92,6 +96,8 @@ def _picture(results: dict, path: pathlib.Path) -> None:
     left.plot(requested, [r['tick_p99_us'] for r in rates], 's--', label='tick p99')
     if all('solver_p50_us' in r for r in rates):
         left.plot(requested, [r['solver_p50_us'] for r in rates], '^:', label='solver step alone p50')
+    if all('solver_paced_p50_us' in r for r in rates):
+        left.plot(requested, [r['solver_paced_p50_us'] for r in rates], '<:', label='solver step paced p50')
     if all('handwritten_p50_us' in r for r in rates):
         left.plot(requested, [r['handwritten_p50_us'] for r in rates], 'v:', label='hand-written node p50')
     left.set_xlabel('requested rate [Hz]')
