@@ -24,7 +24,6 @@ created in a context without a hub subscribes on its own node as before.
 from __future__ import annotations
 
 import functools
-import threading
 import weakref
 from collections import deque
 from typing import Callable
@@ -66,7 +65,6 @@ class EventHub:
         self._local: deque[tuple[Event, str]] = deque()
         #: Those delivered or to deliver here, whose copy from DDS is to be dropped: (topic, source, seq, stamp)
         self._echoes: set[tuple] = set()
-        self._echoes_lock = threading.Lock()  # raisers of other threads add to it
         self._delivering = False
 
     #: The hub's node: hidden (``ros2 node list -a`` shows it), in the namespace of the composite
@@ -103,15 +101,13 @@ class EventHub:
         if not receivers and topic in self._subscriptions:
             self._node.destroy_subscription(self._subscriptions.pop(topic))
             del self._receivers[topic]
-            with self._echoes_lock:  # no copy will come
-                self._echoes = {echo for echo in self._echoes if echo[0] != topic}
+            self._echoes = {echo for echo in self._echoes if echo[0] != topic}  # no copy will come
 
     def raising(self, msg: Event, topic: str) -> None:
         """``msg`` is about to be published on ``topic`` by a raiser of this process (any thread):
         deliver it here at the next flush, and drop its copy from DDS."""
         if topic in self._receivers:
-            with self._echoes_lock:
-                self._echoes.add(_echo(msg, topic))
+            self._echoes.add(_echo(msg, topic))
             self._local.append((msg, topic))
 
     def flush(self) -> None:
@@ -129,10 +125,8 @@ class EventHub:
     def _dispatch(self, msg: Event, topic: str) -> None:
         self.flush()  # what this process raised before this event arrived
         echo = _echo(msg, topic)
-        with self._echoes_lock:
-            ours = echo in self._echoes
+        if echo in self._echoes:
             self._echoes.discard(echo)
-        if ours:
             return
         delivering, self._delivering = self._delivering, True
         try:
