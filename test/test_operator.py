@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from processes import Spawned
 from recordings import read_recording
-from ros_client import call, ros_node
+from ros_client import call_service, ros_node
 
 from std_srvs.srv import Trigger
 
@@ -35,13 +35,11 @@ FINAL = 'Active.Stop.Stopped.NotifyStopped'
 
 
 def trigger(service: str, *, timeout: float = 30.0) -> Trigger.Response:
-    with ros_node() as (node, executor):
-        return call(node, executor, Trigger, service, Trigger.Request(), timeout=timeout)
+    return call_service(Trigger, service, Trigger.Request(), timeout=timeout)
 
 
 def raise_event(service: str, name: str) -> RaiseEvent.Response:
-    with ros_node() as (node, executor):
-        return call(node, executor, RaiseEvent, service, RaiseEvent.Request(name=name), timeout=30.0)
+    return call_service(RaiseEvent, service, RaiseEvent.Request(name=name))
 
 
 def composites_of(app: str) -> list[str]:

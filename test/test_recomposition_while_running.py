@@ -28,7 +28,7 @@ import pytest
 import yaml
 from processes import Spawned
 from recordings import read_recording
-from ros_client import call, get_parameter, ros_node, spin_until
+from ros_client import call_service, call_services, get_parameter, ros_node, spin_until
 
 from rcl_interfaces.msg import SetParametersResult
 from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
@@ -67,14 +67,11 @@ def model_with_a_step_that_does_not_fit(tmp_path: Path) -> Path:
 
 
 def compose(composite: str, step: str) -> Compose.Response:
-    with ros_node() as (node, executor):
-        return call(node, executor, Compose, f'{composite}/coordinator/compose', Compose.Request(step=step),
-                    timeout=30.0)
+    return call_service(Compose, f'{composite}/coordinator/compose', Compose.Request(step=step))
 
 
 def trigger(service: str) -> Trigger.Response:
-    with ros_node() as (node, executor):
-        return call(node, executor, Trigger, service, Trigger.Request(), timeout=30.0)
+    return call_service(Trigger, service, Trigger.Request())
 
 
 def graph_under(namespace: str) -> dict[str, list[str]]:
@@ -114,20 +111,19 @@ class Session:
 
 def set_parameter(node_name: str, name: str, value: float) -> SetParametersResult:
     """``ros2 param set <node> <name> <value>``."""
-    with ros_node() as (node, executor):
-        request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return call(node, executor, SetParameters, f'{node_name}/set_parameters', request, timeout=30.0).results[0]
+    request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+    return call_service(SetParameters, f'{node_name}/set_parameters', request).results[0]
 
 
 def dump_parameters(node_names: list[str], path: Path) -> None:
     """What ``ros2 param dump`` writes for ``node_names``: node -> ros__parameters."""
-    dump = {}
-    with ros_node() as (node, executor):
-        for name in node_names:
-            listed = call(node, executor, ListParameters, f'{name}/list_parameters', ListParameters.Request()).result
-            values = call(node, executor, GetParameters, f'{name}/get_parameters',
-                          GetParameters.Request(names=list(listed.names))).values
-            dump[name] = {'ros__parameters': {n: parameter_value_to_python(v) for n, v in zip(listed.names, values)}}
+    listed = [r.result.names for r in call_services(
+        [(ListParameters, f'{name}/list_parameters', ListParameters.Request()) for name in node_names])]
+    values = [r.values for r in call_services(
+        [(GetParameters, f'{name}/get_parameters', GetParameters.Request(names=list(names)))
+         for name, names in zip(node_names, listed)])]
+    dump = {name: {'ros__parameters': {n: parameter_value_to_python(v) for n, v in zip(names, vs)}}
+            for name, names, vs in zip(node_names, listed, values)}
     path.write_text(yaml.safe_dump(dump))
 
 

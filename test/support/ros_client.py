@@ -1,10 +1,16 @@
-"""A ROS 2 client in the test process, as ``ros2 param get`` or ``ros2 service call`` would be:
-its own context and node, created for one question and destroyed after it."""
+"""ROS 2 clients of a test, as ``ros2 param get`` or ``ros2 service call`` would be: a context and
+node of the test process created for one question and destroyed after it (``ros_node``), or, for a
+request that changes the application, a client process of its own (``call_service``)."""
 
 from __future__ import annotations
 
+import base64
+import json
+import subprocess
+import sys
 import time
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, Iterator
 
 import rclpy
@@ -12,7 +18,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-__all__ = ['ros_node', 'get_parameter', 'call', 'spin_until']
+__all__ = ['ros_node', 'get_parameter', 'call', 'call_service', 'call_services', 'spin_until']
 
 
 @contextmanager
@@ -55,6 +61,37 @@ def call(node: Node, executor, srv_type, service: str, request, *, timeout: floa
         return future.result()
     finally:
         node.destroy_client(client)
+
+
+def call_services(calls: list[tuple[Any, str, Any]], *, timeout: float = 30.0) -> list[Any]:
+    """Make the calls ``(service type, service, request)`` in order from a client process of their
+    own (``service_call``), each once its service is there; their responses. A request that stops,
+    recovers or re-composes the application makes participants come and go while the client ends,
+    which a client in the test process would not survive every time (see ``service_call``)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    sent = [{'type': _type_name(kind), 'service': service, 'timeout': timeout,
+             'request': base64.b64encode(serialize_message(request)).decode()} for kind, service, request in calls]
+    script = Path(__file__).with_name('service_call.py')
+    try:
+        done = subprocess.run([sys.executable, str(script)], input=json.dumps(sent), capture_output=True,
+                              text=True, timeout=len(calls) * timeout + 30)
+    except subprocess.TimeoutExpired as expired:
+        raise AssertionError(f'the client of {[c[1] for c in calls]} did not end: {expired.stderr}') from None
+    assert done.returncode == 0, f'the client of {[c[1] for c in calls]} failed: {done.stderr.strip()}'
+    return [deserialize_message(base64.b64decode(answer), kind.Response)
+            for answer, (kind, _, _) in zip(json.loads(done.stdout), calls)]
+
+
+def call_service(kind, service: str, request, *, timeout: float = 30.0) -> Any:
+    """``ros2 service call <service> <kind> <request>``: the response."""
+    (response,) = call_services([(kind, service, request)], timeout=timeout)
+    return response
+
+
+def _type_name(kind) -> str:
+    """The service class -> ``pkg/srv/Name``."""
+    return f"{kind.__module__.split('.')[0]}/srv/{kind.__name__}"
 
 
 def get_parameter(node_name: str, parameter: str, *, timeout: float = 10.0) -> Any:
