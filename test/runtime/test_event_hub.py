@@ -86,3 +86,46 @@ def test_an_entity_destroyed_by_an_earlier_listener_of_the_same_event_is_not_cal
     assert spin_until(executor, lambda: heard)
     executor.spin_once(timeout_sec=0.1)
     assert heard == ['first']
+
+
+def test_an_event_raised_in_the_process_reaches_its_listeners_at_the_next_flush_once_and_in_order(world):
+    """Issue #9: no round trip through DDS for the process's own events. A flush (the Timer's,
+    after a tick) delivers them at once; their copies from DDS are dropped; an event a listener
+    raises while one is delivered comes after it; an outside process's events still arrive."""
+    executor, runtime, source = world
+    composite = CompositeContext(name='hub', namespace='/hub')
+    heard: list[str] = []
+    first, second = Entity('first', composite=composite), Entity('second', composite=composite)
+    answer = EventRaiser(first, topic=TOPIC)
+    first.listen(topics=[TOPIC], immediate=True,
+                 on_priority=lambda m: (heard.append(f'first {m.name}'),
+                                        m.name == 'e_ping' and answer.raise_event('e_pong')))
+    second.listen(topics=[TOPIC], immediate=True, on_priority=lambda m: heard.append(f'second {m.name}'))
+    runtime.add(first, second)
+    raiser = EventRaiser(source, topic=TOPIC)
+    assert spin_until(executor, lambda: raiser.publisher.get_subscription_count() == 1)
+    hub = runtime.events
+
+    raiser.raise_event('e_ping')
+    assert heard == []  # raised, not yet delivered
+    hub.flush()
+    assert heard == ['first e_ping', 'second e_ping', 'first e_pong', 'second e_pong']
+    executor.spin_once(timeout_sec=0.2)  # the copies from DDS come back...
+    spin_until(executor, lambda: False, timeout=0.3)
+    assert len(heard) == 4  # ...and are dropped
+
+    # an event of another process, over DDS
+    other = rclpy.Context()
+    rclpy.init(context=other, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        outside = rclpy.create_node('outside', context=other)
+        outside_raiser = EventRaiser(outside, topic=TOPIC)
+        deadline = time.monotonic() + 10
+        while outside_raiser.publisher.get_subscription_count() < 1 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+        outside_raiser.raise_event('e_outside')
+        assert spin_until(executor, lambda: 'second e_outside' in heard)
+        assert heard[4:] == ['first e_outside', 'second e_outside']
+        outside.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=other)

@@ -52,9 +52,9 @@ class Hierarchy:
 
     def _track(self) -> None:
         for composer in self.composers():
-            name = composer.composite.name
-            coordinator = composer.coordinator
-            self.coordinators[name] = coordinator
+            self.coordinators[composer.composite.name] = composer.coordinator
+        # and those of composites removed since: their last states may have come in the same spin
+        for name, coordinator in self.coordinators.items():
             seen = self.stamps.setdefault(name, [])
             for state, _event in coordinator.history[len(seen):]:
                 seen.append((time.monotonic(), state))

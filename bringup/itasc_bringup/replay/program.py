@@ -212,6 +212,7 @@ class _Replay:
         left to deliver."""
         while True:
             released = self.timing.release()
+            self.runtime.events.flush()  # what this process raised reaches its listeners
             self.update_coordinators()
             if not released and self.runtime.events.raised == self.quiet_at:
                 break

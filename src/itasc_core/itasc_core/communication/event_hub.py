@@ -9,6 +9,13 @@ the readers fall behind and the reliable writers of the whole application block.
 every listener of that topic in the process. Events still travel over DDS: anyone outside the
 process (a recorder, ``ros2 topic echo``, a composite in another process) sees all of them.
 
+An event raised in the process reaches the process's listeners without the round trip through
+DDS (issue #9: a Monitor's event acted on before the next tick): the raiser hands it to the hub,
+which delivers it at the next :meth:`EventHub.flush` (the Timer's, after each tick) or before the
+next event that arrives over DDS, whichever comes first, and drops its copy coming back from DDS.
+Delivery is run to completion: an event raised by a listener while events are delivered waits
+until the one being delivered has reached every listener.
+
 The owner of a process's executor installs the hub (:meth:`EventHub.install`, done by
 :class:`~itasc_core.composition.deployment.Runtime`); an :class:`~.events.EventListener`
 created in a context without a hub subscribes on its own node as before.
@@ -17,7 +24,9 @@ created in a context without a hub subscribes on its own node as before.
 from __future__ import annotations
 
 import functools
+import threading
 import weakref
+from collections import deque
 from typing import Callable
 
 from rclpy.context import Context
@@ -53,6 +62,12 @@ class EventHub:
         #: How many events this process's raisers raised (replay seam: while it does not change,
         #: nothing new can be waiting on the process's event topics).
         self.raised = 0
+        #: Events raised in this process, not yet delivered to its listeners.
+        self._local: deque[tuple[Event, str]] = deque()
+        #: Those delivered or to deliver here, whose copy from DDS is to be dropped: (topic, source, seq, stamp)
+        self._echoes: set[tuple] = set()
+        self._echoes_lock = threading.Lock()  # raisers of other threads add to it
+        self._delivering = False
 
     #: The hub's node: hidden (``ros2 node list -a`` shows it), in the namespace of the composite
     #: the process was started for, where a parent's Composer looks for it.
@@ -88,10 +103,51 @@ class EventHub:
         if not receivers and topic in self._subscriptions:
             self._node.destroy_subscription(self._subscriptions.pop(topic))
             del self._receivers[topic]
+            with self._echoes_lock:  # no copy will come
+                self._echoes = {echo for echo in self._echoes if echo[0] != topic}
+
+    def raising(self, msg: Event, topic: str) -> None:
+        """``msg`` is about to be published on ``topic`` by a raiser of this process (any thread):
+        deliver it here at the next flush, and drop its copy from DDS."""
+        if topic in self._receivers:
+            with self._echoes_lock:
+                self._echoes.add(_echo(msg, topic))
+            self._local.append((msg, topic))
+
+    def flush(self) -> None:
+        """Deliver the events raised in this process so far, and those their listeners raise (call
+        it on the executor's thread, between computations)."""
+        if self._delivering or not self._local:
+            return  # the delivery under way takes them, in order
+        self._delivering = True
+        try:
+            while self._local:
+                self._deliver(*self._local.popleft())
+        finally:
+            self._delivering = False
 
     def _dispatch(self, msg: Event, topic: str) -> None:
+        self.flush()  # what this process raised before this event arrived
+        echo = _echo(msg, topic)
+        with self._echoes_lock:
+            ours = echo in self._echoes
+            self._echoes.discard(echo)
+        if ours:
+            return
+        delivering, self._delivering = self._delivering, True
+        try:
+            self._deliver(msg, topic)
+        finally:
+            self._delivering = delivering
+        self.flush()  # what its listeners raised on it
+
+    def _deliver(self, msg: Event, topic: str) -> None:
         # a copy: a receiver may create or destroy entities (and their listeners) on an event
         receivers = self._receivers.get(topic, {})
         for receiver in list(receivers):
             if receiver in receivers:
                 receiver(msg, topic)
+
+
+def _echo(msg: Event, topic: str) -> tuple:
+    return topic, msg.source, msg.seq, msg.stamp.sec, msg.stamp.nanosec

@@ -53,6 +53,8 @@ class EventRaiser:
             self._seq += 1
             msg.seq = self._seq
             msg.stamp = self._node.get_clock().now().to_msg()
+            if self._hub is not None:
+                self._hub.raising(msg, self.topic)  # before its copy from DDS can arrive
             self._publisher.publish(msg)
             if self._hub is not None:
                 self._hub.raised += 1

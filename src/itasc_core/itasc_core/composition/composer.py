@@ -206,6 +206,25 @@ class Composer(Entity):
         if self.scheduler is not None:
             self.scheduler.tick(t)
 
+    def coordinate(self) -> None:
+        """After a tick of the whole hierarchy in this process (paper §6.2: the Timer's event
+        triggers the Coordinators): the events the tick raised reach this process's listeners, and
+        the Coordinators holding events take them, this composite's first, then its children's in
+        this process, each command delivered before its receiver's turn. So a Monitor's event in
+        one tick is acted on in the next: a configuration switch of the Running sub-FSM reaches the
+        Task's Configurator between the two (issue #9: a reaction in two ticks, not a Coordinator
+        update period per composite)."""
+        hub = EventHub.of(self.context)
+        if hub is not None:
+            hub.flush()
+        if self.coordinator is not None and self.coordinator.holds_events:
+            self.coordinator.update()
+            if hub is not None:
+                hub.flush()
+        for child in list(self.children.values()):
+            if child is not None:
+                child.coordinate()
+
     # -- DeployEntities ---------------------------------------------------------------------------------
 
     def deploy(self) -> None:
@@ -225,7 +244,8 @@ class Composer(Entity):
         to hand to the executor (for a child composite added at run time: built off the tick path,
         :mod:`.steps`)."""
         nodes: list = []
-        self.scheduler = Scheduler(composite=self.composite, remote_trigger=self._remote_trigger)
+        self.scheduler = Scheduler(composite=self.composite, remote_trigger=self._remote_trigger,
+                                   after_trigger=self.coordinate)
         nodes.append(self.scheduler)
         for entity in self.model.entities:
             nodes += self._deploy_entity(entity)
@@ -235,7 +255,8 @@ class Composer(Entity):
             self.outside_events = OutsideEvents(composite=self.composite, events=self.model.events)
             nodes.append(self.outside_events)
         if self.composite.parent_namespace is None and self.model.rate:
-            self.timer = Timer(composite=self.composite, scheduler=self.scheduler, rate=self.model.rate)
+            self.timer = Timer(composite=self.composite, scheduler=self.scheduler, rate=self.model.rate,
+                               after_tick=self.coordinate)
             nodes.append(self.timer)
         return nodes
 

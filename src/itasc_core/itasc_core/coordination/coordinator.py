@@ -2,8 +2,10 @@
 
 A pure event processor: it feeds the events of its composite's event topic (and its parent's
 commands) into the life-cycle FSM of :mod:`.lifecycle` and publishes the events that FSM raises.
-Common events are buffered and processed at the Coordinator's next update (a periodic timer);
-priority events (``e_emergency``) are processed on arrival (§6.2). It publishes its fully
+Common events are buffered and processed at the Coordinator's next update: after each tick of
+its composite (:meth:`~itasc_core.composition.composer.Composer.coordinate`, when it holds events),
+and periodically between ticks (a timer); priority events (``e_emergency``) are processed on
+arrival (§6.2). It publishes its fully
 qualified state on ``<composite namespace>/state`` on every change, and offers the operator
 services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``, ``~/compose``). A
 parent's command of a composition step (``e_<c>_compose_<step>``) goes to the composite's
@@ -112,6 +114,11 @@ class Coordinator(Entity):
 
     def _gap(self, source: str, last: int, seq: int) -> None:
         self.get_logger().error(f'lost events from {source}: after #{last} came #{seq}')
+
+    @property
+    def holds_events(self) -> bool:
+        """Whether common events wait for the next update."""
+        return bool(len(self._events) or (self._parent_events is not None and len(self._parent_events)))
 
     def update(self) -> None:
         """Drain the event buffers: all common events that arrived since the last update."""

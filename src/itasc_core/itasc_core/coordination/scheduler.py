@@ -47,8 +47,11 @@ class _Item:
 class Scheduler(Entity):
     """Runs the composite's computations, in order, every tick it is given."""
 
-    def __init__(self, *, composite: CompositeContext, remote_trigger: bool = False) -> None:
+    def __init__(self, *, composite: CompositeContext, remote_trigger: bool = False,
+                 after_trigger: Callable[[], None] | None = None) -> None:
         super().__init__('scheduler', composite=composite)
+        #: Called after each tick of the trigger topic (the Composer's coordination between ticks).
+        self._after_trigger = after_trigger
         self._items: list[_Item] = []
         self._monitors: list[Monitor] = []
         self.active = False
@@ -72,6 +75,8 @@ class Scheduler(Entity):
 
     def _on_trigger(self, msg: Float64) -> None:
         self.tick(msg.data)
+        if self._after_trigger is not None:
+            self._after_trigger()
 
     # -- structure, set by the Composer ------------------------------------------------------------
 

@@ -1,7 +1,9 @@
-"""The Timer (paper §6.2): triggers the root composite's Scheduler periodically.
+"""The Timer (paper §6.2): triggers the root composite's Scheduler periodically, and after each
+tick the Coordinators of the process (``after_tick``: the Composer's coordination), so that what
+a tick raised is acted on before the next.
 
 It also measures what a user of a control loop wants to know: the achieved rate and how long a
-tick takes from trigger to completion (the whole hierarchy's computations).
+tick takes from trigger to completion (the whole hierarchy's computations and the coordination after them).
 
 Other threads of the process (the Runtime's worker building a re-composition's entities off the
 tick path, the recorder's writer) hold the interpreter for up to Python's switch interval (5 ms by
@@ -15,6 +17,7 @@ from __future__ import annotations
 import sys
 import time
 from collections import deque
+from typing import Callable
 
 from ..entity import CompositeContext, Entity
 from .scheduler import Scheduler
@@ -47,10 +50,13 @@ def _ask_switch_interval(timer: int, interval: float | None) -> None:
 class Timer(Entity):
     """Ticks ``scheduler`` at ``rate`` Hz with the time since the Timer started."""
 
-    def __init__(self, *, composite: CompositeContext, scheduler: Scheduler, rate: float, window: int = 5000) -> None:
+    def __init__(self, *, composite: CompositeContext, scheduler: Scheduler, rate: float, window: int = 5000,
+                 after_tick: Callable[[], None] | None = None) -> None:
         super().__init__('timer', composite=composite)
         self.rate = rate
         self._scheduler = scheduler
+        #: Called after each tick, inside its measured time (the Composer's coordination between ticks).
+        self._after_tick = after_tick
         self._t0 = time.monotonic()
         self.durations: deque[float] = deque(maxlen=window)
         self.stamps: deque[float] = deque(maxlen=window)
@@ -60,6 +66,8 @@ class Timer(Entity):
     def _tick(self) -> None:
         start = time.monotonic()
         self._scheduler.tick(start - self._t0)
+        if self._after_tick is not None:
+            self._after_tick()
         if self._scheduler.active:
             self.durations.append(time.monotonic() - start)
             self.stamps.append(start)
