@@ -129,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     from itasc_core.composition.composer import bring_up
     from itasc_core.composition.deployment import Runtime, make_executor, end_process_within
     from itasc_core.composition.model import walk
+    from itasc_core.composition.zygote import zygote_for
     from itasc_core.entity import CompositeContext
 
     from .console import RunFacts, TraceFile, Watch, task_specs
@@ -139,10 +140,11 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(sig, lambda signum, _frame: stop_requested.append('signal ' + signal.Signals(signum).name))
 
     started = time.monotonic()
+    zygote = zygote_for(model) if args.deploy == 'per-composite' else None  # before DDS starts threads
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
     root = CompositeContext(name=model.name, namespace=f'/{model.name}')
-    runtime = Runtime(executor=executor, mode=args.deploy, namespace=root.namespace, background=True)
+    runtime = Runtime(executor=executor, mode=args.deploy, namespace=root.namespace, background=True, zygote=zygote)
     node = rclpy.create_node('bootstrap', namespace=root.namespace)
     executor.add_node(node)
     recorder = None

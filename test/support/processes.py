@@ -24,25 +24,38 @@ def started_here(*, command: str = '') -> dict[int, str]:
     """Running processes started, directly or not, by this test process: pid -> command line.
 
     Recognised by the ``ITASC_TEST_SESSION=<pid of the test process>`` in their environment
-    (conftest.py sets it), which every descendant inherits, even one whose parent died. Only those
-    whose command line contains ``command``. Linux (``/proc``).
+    (conftest.py sets it), which every descendant inherits, even one whose parent died; or, for a
+    composite process forked by a zygote (``itasc_core.composition.zygote``: its command line is
+    written over the memory /proc shows its environment from), by an ancestor that has it. Only
+    those whose command line contains ``command``. Linux (``/proc``).
     """
     mark = f'ITASC_TEST_SESSION={os.getpid()}'.encode()
-    found = {}
+    marked, parents, lines = set(), {}, {}
     for entry in os.scandir('/proc'):
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
             continue
+        pid = int(entry.name)
         try:
-            with open(f'/proc/{entry.name}/environ', 'rb') as environ:
-                if mark not in environ.read().split(b'\0'):
-                    continue
-            with open(f'/proc/{entry.name}/cmdline', 'rb') as cmdline:
-                line = cmdline.read().replace(b'\0', b' ').decode(errors='replace').strip()
-        except OSError:  # gone meanwhile (zombies have an empty environ), or not ours to read
+            with open(f'/proc/{pid}/environ', 'rb') as environ:
+                if mark in environ.read().split(b'\0'):
+                    marked.add(pid)
+            with open(f'/proc/{pid}/stat', 'rb') as stat:
+                parents[pid] = int(stat.read().rsplit(b')', 1)[1].split()[1])
+            with open(f'/proc/{pid}/cmdline', 'rb') as cmdline:
+                lines[pid] = cmdline.read().replace(b'\0', b' ').decode(errors='replace').strip()
+        except OSError:  # gone meanwhile, or not ours to read
             continue
-        if command in line:
-            found[int(entry.name)] = line
-    return found
+
+    def ours(pid: int) -> bool:
+        seen = set()
+        while pid in parents and pid not in seen:
+            if pid in marked:
+                return True
+            seen.add(pid)
+            pid = parents[pid]
+        return pid == os.getpid()
+
+    return {pid: line for pid, line in lines.items() if line and ours(pid) and command in line}
 
 
 def _catches(pid: int, signum: int) -> bool:

@@ -117,6 +117,9 @@ class Composer(Entity):
         self.monitors: dict[str, Monitor] = {}
         self.outside_events: OutsideEvents | None = None
         self.children: dict[str, Composer | None] = {}  # None: hosted in another process
+        #: Per child started in a process of its own: the endpoints on our event topic before it
+        #: started, none of which can be its process's (see :meth:`when_children_listen`).
+        self._endpoints_before: dict[str, set[bytes]] = {}
         self._pending: list[ConnectionModel] = []
         self._child_raisers: dict[str, EventRaiser] = {}
         #: Exported inputs the parent bound: port -> the topic that feeds it.
@@ -272,21 +275,20 @@ class Composer(Entity):
         """Call ``then`` once the process of every child of ``names`` that has one listens to our
         event topic (its event hub, on behalf of the child's Coordinator) and its Coordinator talks
         on it, so that no command to it can be lost to DDS discovery; ``otherwise(late)`` after
-        ``timeout`` s. Endpoints already there when this is called are not the new process's: a
-        child composite added back soon after its removal would be seen listening through the
-        endpoints of its old process, which lingers a moment after it stopped."""
-        remote = [self.composite.child(name).namespace for name in names if self.children.get(name, 0) is None]
+        ``timeout`` s. Endpoints already there when the child's process was started are not that
+        process's: a child composite added back soon after its removal would be seen listening
+        through the endpoints of its old process, which lingers a moment after it stopped."""
+        remote = {self.composite.child(name).namespace: self._endpoints_before.get(name, set())
+                  for name in names if self.children.get(name, 0) is None}
         if not remote:
             then()
             return
         deadline = self.get_clock().now().nanoseconds + int(timeout * 1e9)
         topic = self.composite.events_topic
-        old = {bytes(i.endpoint_gid) for i in (*self.get_subscriptions_info_by_topic(topic),
-                                                *self.get_publishers_info_by_topic(topic))}
 
         def ready(infos, node: str, namespace: str) -> bool:
-            return any(i.node_name == node and i.node_namespace == namespace and bytes(i.endpoint_gid) not in old
-                       for i in infos)
+            return any(i.node_name == node and i.node_namespace == namespace
+                       and bytes(i.endpoint_gid) not in remote[namespace] for i in infos)
 
         def poll() -> None:
             subscribers = self.get_subscriptions_info_by_topic(topic)
@@ -297,7 +299,7 @@ class Composer(Entity):
                 then()
             elif self.get_clock().now().nanoseconds > deadline:
                 self.destroy_timer(timer)
-                otherwise(remote)
+                otherwise(list(remote))
         timer = self.create_timer(0.02, poll)
 
     def _deploy_entity(self, entity: EntityModel | CompositeModel) -> list:
@@ -330,6 +332,9 @@ class Composer(Entity):
     def spawn_child(self, entity: CompositeModel) -> None:
         """Start the process of child composite ``entity`` and watch it."""
         context = self.composite.child(entity.name)
+        topic = self.composite.events_topic
+        self._endpoints_before[entity.name] = {bytes(i.endpoint_gid) for i in (
+            *self.get_subscriptions_info_by_topic(topic), *self.get_publishers_info_by_topic(topic))}
         self.runtime.spawn(model=entity, namespace=context.namespace, parent_namespace=self.composite.namespace)
         self.children[entity.name] = None
         process = self.runtime.process(context.namespace)

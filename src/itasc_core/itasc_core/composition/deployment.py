@@ -23,7 +23,6 @@ import faulthandler
 import json
 import os
 import subprocess
-import sys
 import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -35,6 +34,7 @@ from ..communication.event_hub import EventHub
 from ..communication.ports import LocalBus
 from .model import CompositeModel
 from .remote import HostClient, RemoteProcess
+from .zygote import HOST_COMMAND, ForkedProcess, Zygote
 
 __all__ = ['Runtime', 'DeployMode', 'make_executor', 'end_process_within', 'exit_reason']
 
@@ -65,7 +65,7 @@ def end_process_within(seconds: float = 20.0) -> None:
     faulthandler.dump_traceback_later(seconds, exit=True)
 
 
-def exit_reason(process: subprocess.Popen | RemoteProcess) -> str:
+def exit_reason(process: subprocess.Popen | ForkedProcess | RemoteProcess) -> str:
     """How a composite process that ended by itself ended, in words."""
     if isinstance(process, RemoteProcess):
         return process.failure
@@ -76,8 +76,10 @@ class Runtime:
     """The executor of this process, the nodes on it and the composite processes it started."""
 
     def __init__(self, *, executor, mode: DeployMode = 'single', host: str | None = None,
-                 namespace: str = '/', background: bool = False) -> None:
+                 namespace: str = '/', background: bool = False, zygote: Zygote | None = None) -> None:
         self.executor = executor
+        #: Forks the composite processes started here (:mod:`.zygote`); None: new interpreters.
+        self.zygote = zygote
         self.mode: DeployMode = mode
         self.host = host or os.environ.get('ITASC_HOST') or None
         self._retired: list[Node] = []
@@ -86,7 +88,7 @@ class Runtime:
         self._background = background
         self._doomed: list[Node] = []  # out of the executor, to be destroyed off the tick path
         self._doomed_lock = threading.Lock()
-        self._processes: dict[str, subprocess.Popen | RemoteProcess] = {}
+        self._processes: dict[str, subprocess.Popen | ForkedProcess | RemoteProcess] = {}
         self._spec_files: list[str] = []
         self._hosts: HostClient | None = None
         #: the process's one reader per event topic, shared by every entity created from now on;
@@ -168,12 +170,12 @@ class Runtime:
         with os.fdopen(fd, 'w') as out:
             json.dump(model.model_dump(by_alias=True, exclude_defaults=True), out)
         self._spec_files.append(path)
-        command = [sys.executable, '-m', 'itasc_core.composition.host', '--spec', path,
-                   '--namespace', namespace, '--parent-namespace', parent_namespace,
-                   '--parent-pid', str(os.getpid())]
-        self._processes[namespace] = subprocess.Popen(command)
+        argv = ['--spec', path, '--namespace', namespace, '--parent-namespace', parent_namespace,
+                '--parent-pid', str(os.getpid())]
+        self._processes[namespace] = (self.zygote.start(argv) if self.zygote is not None
+                                      else subprocess.Popen([*HOST_COMMAND, *argv]))
 
-    def process(self, namespace: str) -> subprocess.Popen | RemoteProcess | None:
+    def process(self, namespace: str) -> subprocess.Popen | ForkedProcess | RemoteProcess | None:
         return self._processes.get(namespace)
 
     def join(self, namespace: str, *, timeout: float = 10.0, orderly: bool = True) -> int | None:

@@ -1,8 +1,9 @@
 """A process hosting one composite (``--deploy per-composite``, paper §4.4 and §6.1).
 
-Started by the parent's Composer; does for its composite what the bootstrap does for the root:
-brings up its Coordinator, Composer and Configurator, then lets the life-cycle run. Its Scheduler
-is triggered over the composite's trigger topic. The process ends after its Coordinator notified
+Started by the parent's Composer (forked from its process's zygote, :mod:`.zygote`); does for
+its composite what the bootstrap does for the root: brings up its Coordinator, Composer and
+Configurator, then lets the life-cycle run. Its Scheduler is triggered over the composite's trigger
+topic. The process ends after its Coordinator notified
 the parent that it stopped, or when the parent process is gone: a composite whose parent died can
 never be stopped in order, and must not outlive it. SIGINT and SIGTERM are ignored: a terminal's
 Ctrl-C and a process manager's stop reach every process of the application, and the bootstrap
@@ -26,6 +27,7 @@ from ..communication.dds import configure_dds
 from ..entity import CompositeContext
 from .composer import bring_up
 from .deployment import Runtime, make_executor, end_process_within
+from .zygote import zygote_for
 from .model import CompositeModel
 
 #: Time to let the last events (e_<c>_stopped) reach the parent before the process exits.
@@ -47,9 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # `kill -USR1 <pid>`: where is it stuck?
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, signal.SIG_IGN)
+    zygote = zygote_for(model)  # before DDS starts threads
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
-    runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace, background=True)
+    runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace, background=True,
+                      zygote=zygote)
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     stopped_at = None
     try:

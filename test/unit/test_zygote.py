@@ -1,0 +1,68 @@
+"""The zygote (itasc_core.composition.zygote): composite processes forked from a copy of the process
+made before ROS starts, which the asking process then owns as its children, with the command line
+of a started composite process and its exit code as subprocess.Popen reports it.
+
+Each case runs in a process of its own: making a zygote turns the maker into a child subreaper and
+needs a process without other threads, which the test process is not.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+SCRIPT = textwrap.dedent('''
+    import json, os, sys, time
+    from itasc_core.composition.zygote import HOST_COMMAND, Zygote
+
+    zygote = Zygote.make()
+    assert zygote is not None
+    bogus = zygote.start(['--no-such-option'])
+    missing = zygote.start(['--spec', '/no/such/spec.json', '--namespace', '/x', '--parent-namespace', '/',
+                            '--parent-pid', str(os.getpid())])
+    with open(f'/proc/{bogus.pid}/cmdline', 'rb') as cmdline:
+        title = cmdline.read().replace(b'\\0', b' ').decode().strip()
+    with open(f'/proc/{bogus.pid}/stat', 'rb') as stat:
+        parent = int(stat.read().rsplit(b')', 1)[1].split()[1])
+    codes = [bogus.wait(timeout=30), missing.wait(timeout=30)]
+    print(json.dumps({'codes': codes, 'title': title, 'parent': parent, 'me': os.getpid(),
+                      'zygote': zygote.pid, 'host': ' '.join(HOST_COMMAND)}))
+''')
+
+
+def test_a_forked_composite_process_is_the_askers_child_and_reports_how_it_ended():
+    done = subprocess.run([sys.executable, '-c', SCRIPT], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    facts = json.loads(done.stdout)
+    # argparse refuses the option (exit 2); the missing spec is a traceback and exit 1
+    assert facts['codes'] == [2, 1], done.stderr
+    assert 'usage: host.py' in done.stderr and 'host.py: error:' in done.stderr
+    assert 'FileNotFoundError' in done.stderr and '/no/such/spec.json' in done.stderr
+    # re-parented to the process that asked for it, which could wait for it
+    assert facts['parent'] == facts['me'] != facts['zygote']
+    # ps shows what a started composite process shows
+    assert facts['title'] == f"{facts['host']} --no-such-option"
+
+
+def test_the_zygote_ends_with_the_process_that_made_it():
+    script = SCRIPT.split('bogus =')[0] + 'print(zygote.pid, flush=True)\n'
+    done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    zygote = int(done.stdout)
+    deadline = time.monotonic() + 10
+    while _alive(zygote) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(zygote)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f'/proc/{pid}/stat', 'rb') as stat:  # a zombie is dead, waiting for its parent
+        return stat.read().rsplit(b')', 1)[1].split()[0] != b'Z'
