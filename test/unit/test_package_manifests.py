@@ -17,7 +17,7 @@ PACKAGES = {'itasc_core': ROOT / 'src/itasc_core', 'itasc_tasks': ROOT / 'src/it
 ROSDEP = {'numpy': 'python3-numpy', 'yaml': 'python3-yaml', 'pydantic': 'python3-pydantic',
           'pinocchio': 'pinocchio', 'scipy': 'python3-scipy', 'transitions': 'python3-transitions',
           'matplotlib': 'python3-matplotlib', 'mpl_toolkits': 'python3-matplotlib', 'graphviz': 'python3-graphviz',
-          'rich': 'python3-rich', 'argcomplete': 'python3-argcomplete'}
+          'rich': 'python3-rich', 'argcomplete': 'python3-argcomplete', 'setproctitle': 'python3-setproctitle'}
 #: Modules without a rosdep key: named in the package.xml's "pip only" comment instead.
 PIP_ONLY = {'qpsolvers', 'daqp', 'mcap', 'rosbags'}
 

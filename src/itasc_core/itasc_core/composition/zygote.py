@@ -136,6 +136,8 @@ def _serve(requests: int, answers: int) -> None:
             middle = os.fork()
             if middle == 0:
                 os.close(pids_r)
+                # the title first, so that the child has it from its first instant
+                setproctitle.setproctitle(' '.join([*HOST_COMMAND, *argv]))
                 child = os.fork()
                 if child == 0:
                     for fd in (requests, answers, pids_w):
@@ -156,11 +158,8 @@ def _run(argv: list[str]) -> None:
     """The composite process: ``itasc_core.composition.host`` with ``argv``; never returns."""
     code = 1
     try:
-        import setproctitle
-
         from . import host
 
-        setproctitle.setproctitle(' '.join([*HOST_COMMAND, *argv]))
         sys.argv = [host.__file__, *argv]  # as a started process has them (rclpy.init reads them)
         code = host.main(argv)
     except SystemExit as exit_:
