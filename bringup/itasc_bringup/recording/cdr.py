@@ -52,7 +52,6 @@ class _Field:
     """One field: how to read it (an expression of ``obj``), its kind and, for numbers, their
     ``struct`` code and size."""
 
-    name: str
     kind: str  # scalar, string, strings, numbers, time, header
     read: str
     code: str = ''
@@ -67,16 +66,16 @@ def _fields(cls: type) -> list[_Field]:
     for name, type_name in msg_type.get_fields_and_field_types().items():
         read = f'special[{name!r}](obj)' if name in special else f'obj.{name}'
         if type_name in _SCALARS:
-            fields.append(_Field(name, 'scalar', read, *_SCALARS[type_name]))
+            fields.append(_Field('scalar', read, *_SCALARS[type_name]))
         elif type_name == 'string':
-            fields.append(_Field(name, 'string', read))
+            fields.append(_Field('string', read))
         elif type_name == 'sequence<string>':
-            fields.append(_Field(name, 'strings', read))
+            fields.append(_Field('strings', read))
         elif type_name.startswith('sequence<') and type_name[9:-1] in _SCALARS:
-            fields.append(_Field(name, 'numbers', read, *_SCALARS[type_name[9:-1]]))
+            fields.append(_Field('numbers', read, *_SCALARS[type_name[9:-1]]))
         elif type_name in ('builtin_interfaces/Time', 'std_msgs/Header'):
             kind = 'time' if type_name == 'builtin_interfaces/Time' else 'header'
-            fields.append(_Field(name, kind, 'obj.t' if sample else read))
+            fields.append(_Field(kind, 'obj.t' if sample else read))
         else:
             raise Unsupported(f'{name}: {type_name}')
     return fields
