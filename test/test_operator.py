@@ -20,6 +20,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from model_files import app_with_drivers
 from processes import Spawned
 from recordings import read_recording
 from ros_client import call_service, ros_node
@@ -113,8 +114,11 @@ def tcp_errors(run: dict[str, list], *, after: float, until: float) -> np.ndarra
 
 def test_recover_is_refused_while_the_driver_is_silent_and_brings_the_robot_back_once_it_is_back(tmp_path):
     root, mcap = '/approach_object_ros_driver', tmp_path / 'recovered.mcap'
+    # silent for 1 s, not 0.25 s: the silence made here lasts seconds, and a stall of a loaded
+    # machine (a parallel test run) must not be taken for it
+    app_file = app_with_drivers('approach_object_ros_driver', tmp_path, silent_after=1.0)
     with Spawned(FAKE_ROS2_CONTROL) as driver, \
-            Spawned([*BOOTSTRAP, 'approach_object_ros_driver', '--record', str(mcap)]) as app:
+            Spawned([*BOOTSTRAP, str(app_file), '--record', str(mcap)]) as app:
         app.wait_for_line('[state] approach_object_ros_driver: Active.Run.Running', timeout=120)
         assert_operator_services(composites_of('approach_object_ros_driver'))
         time.sleep(1.0)

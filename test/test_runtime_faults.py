@@ -1,5 +1,6 @@
 """Faults at run time, measured (issue #8): a composite process killed with SIGKILL is detected by
-its parent within 100 ms and the robot is held; an event storm across one composite (10,000
+its parent within 100 ms and the robot is held; a driver that says nothing for longer than its
+Driver's ``silent_after`` puts the application in Safety, and not before; an event storm across one composite (10,000
 events/s for 10 s by default, ``ITASC_STORM_RATE`` to change it) loses nothing, keeps each source's
 order and grows the bootstrap's memory by a bounded amount (test/support/storm.py).
 
@@ -21,11 +22,13 @@ import time
 
 import numpy as np
 import pytest
+from model_files import app_with_drivers
 from processes import Spawned, started_here
 from recordings import read_recording
 from storm import storm
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
+FAKE_ROS2_CONTROL = [sys.executable, '-m', 'itasc_drivers.fake_ros2_control']
 #: events per second of the storm test (``ITASC_STORM_RATE`` overrides it)
 STORM_RATE = 10_000
 
@@ -79,3 +82,31 @@ def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
         pytest.skip(f'the storm could not be raised at {rate}/s on this machine now (nothing was lost, '
                     f'but the rate was not reached): {figures.summary()}')
     assert figures.send_seconds < 10.0 * 1.2, f'the storm could not be raised at {rate}/s: {figures.summary()}'
+
+
+@pytest.mark.parametrize('silent_after', [None, 3.0])
+def test_a_paused_driver_puts_the_application_in_safety_after_the_drivers_silent_after(tmp_path, silent_after):
+    """``silent_after`` of a Driver (default 20 periods, at least 0.25 s) is how long its driver may
+    say nothing: a driver paused for 1 s stops the application by default, not with 3 s; paused
+    for longer than that, it does."""
+    fields = {} if silent_after is None else {'silent_after': silent_after}
+    app = app_with_drivers('approach_object_ros_driver', tmp_path, **fields)
+    with Spawned(FAKE_ROS2_CONTROL) as driver, Spawned([*BOOTSTRAP, str(app)]) as run:
+        run.wait_for_line('[state] approach_object_ros_driver: Active.Run.Running', timeout=120)
+        time.sleep(1.0)
+        assert not any(line.startswith('SAFETY') for line in run.forget_lines()), run.output()
+        os.kill(driver.process.pid, signal.SIGSTOP)  # the driver says nothing for a second
+        time.sleep(1.0)
+        os.kill(driver.process.pid, signal.SIGCONT)
+        time.sleep(1.0)
+        safety = [line for line in run.forget_lines() if line.startswith('SAFETY')]
+        if silent_after is None:
+            assert safety and 'Driver_panda_silent' in safety[0], run.output()
+        else:
+            assert not safety, run.output()
+            os.kill(driver.process.pid, signal.SIGSTOP)  # now longer than silent_after
+            run.wait_for_line('SAFETY: approach_object_ros_driver entered Safety <- e_emergency from '
+                              '/approach_object_ros_driver/Driver_panda_silent', timeout=silent_after + 5)
+            os.kill(driver.process.pid, signal.SIGCONT)
+        os.killpg(run.process.pid, signal.SIGINT)
+        run.finish(timeout=60)

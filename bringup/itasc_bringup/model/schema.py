@@ -484,6 +484,9 @@ class DriverBase(_Model):
     kind: str
     """A registered driver: ``simulated`` (integrates the commanded velocities) or ``ros2_control``
     (an existing driver); its fields follow."""
+    silent_after: float | None = Field(default=None, gt=0)
+    """How long the driver may report no joint state before its watchdog puts the application in
+    Safety [s]; none: 20 periods of the application's rate, at least 0.25 s."""
 
     @property
     def driver(self) -> Any:

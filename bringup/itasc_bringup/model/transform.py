@@ -97,7 +97,8 @@ def _watchdogs(driver: Driver, rate: float) -> list[MonitorModel]:
     watch = f'Driver_{driver.robot}.joint_state'
     return [
         MonitorModel.model_validate({'name': f'Driver_{driver.robot}_silent', 'watch': watch, 'condition': 'stale',
-                                     'timeout': max(0.25, 20.0 / rate), 'grace': DRIVER_GRACE, 'event': SAFETY_EVENT}),
+                                     'timeout': driver.silent_after or max(0.25, 20.0 / rate), 'grace': DRIVER_GRACE,
+                                     'event': SAFETY_EVENT}),
         MonitorModel(name=f'Driver_{driver.robot}_nonfinite', watch=watch, field='position',
                      condition='nonfinite', event=SAFETY_EVENT),
     ]
