@@ -22,30 +22,34 @@ SCRIPT = textwrap.dedent('''
     zygote = Zygote.make()
     assert zygote is not None
     bogus = zygote.start(['--no-such-option'])
-    missing = zygote.start(['--spec', '/no/such/spec.json', '--namespace', '/x', '--parent-namespace', '/',
-                            '--parent-pid', str(os.getpid())])
-    with open(f'/proc/{bogus.pid}/cmdline', 'rb') as cmdline:
+    # a composite process that waits: opening its spec, a FIFO, blocks until a writer opens it
+    fifo = os.path.join(sys.argv[1], 'spec.json')
+    os.mkfifo(fifo)
+    argv = ['--spec', fifo, '--namespace', '/x', '--parent-namespace', '/', '--parent-pid', str(os.getpid())]
+    waiting = zygote.start(argv)
+    with open(f'/proc/{waiting.pid}/cmdline', 'rb') as cmdline:
         title = cmdline.read().replace(b'\\0', b' ').decode().strip()
-    with open(f'/proc/{bogus.pid}/stat', 'rb') as stat:
+    with open(f'/proc/{waiting.pid}/stat', 'rb') as stat:
         parent = int(stat.read().rsplit(b')', 1)[1].split()[1])
-    codes = [bogus.wait(timeout=30), missing.wait(timeout=30)]
+    open(fifo, 'w').close()  # an empty spec: not JSON
+    codes = [bogus.wait(timeout=30), waiting.wait(timeout=30)]
     print(json.dumps({'codes': codes, 'title': title, 'parent': parent, 'me': os.getpid(),
-                      'zygote': zygote.pid, 'host': ' '.join(HOST_COMMAND)}))
+                      'zygote': zygote.pid, 'expected': ' '.join([*HOST_COMMAND, *argv])}))
 ''')
 
 
-def test_a_forked_composite_process_is_the_askers_child_and_reports_how_it_ended():
-    done = subprocess.run([sys.executable, '-c', SCRIPT], capture_output=True, text=True, timeout=60)
+def test_a_forked_composite_process_is_the_askers_child_and_reports_how_it_ended(tmp_path):
+    done = subprocess.run([sys.executable, '-c', SCRIPT, str(tmp_path)], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     facts = json.loads(done.stdout)
-    # argparse refuses the option (exit 2); the missing spec is a traceback and exit 1
+    # argparse refuses the option (exit 2); a spec that is not JSON is a traceback and exit 1
     assert facts['codes'] == [2, 1], done.stderr
     assert 'usage: host.py' in done.stderr and 'host.py: error:' in done.stderr
-    assert 'FileNotFoundError' in done.stderr and '/no/such/spec.json' in done.stderr
+    assert 'JSONDecodeError' in done.stderr
     # re-parented to the process that asked for it, which could wait for it
     assert facts['parent'] == facts['me'] != facts['zygote']
-    # ps shows what a started composite process shows
-    assert facts['title'] == f"{facts['host']} --no-such-option"
+    # ps shows what a started composite process shows, from its first instant
+    assert facts['title'] == facts['expected']
 
 
 def test_the_zygote_ends_with_the_process_that_made_it():
