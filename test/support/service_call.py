@@ -15,7 +15,6 @@ import importlib
 import json
 import os
 import sys
-import time
 
 
 def service_type(name: str):
@@ -32,25 +31,25 @@ def fail(reason: str) -> None:
 
 def main() -> None:
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.serialization import deserialize_message, serialize_message
+    from ros_client import call
 
     calls = json.load(sys.stdin)
     rclpy.init()
     node = rclpy.create_node('service_call')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     answers = []
     for request in calls:
         kind = service_type(request['type'])
-        client = node.create_client(kind, request['service'])
-        deadline = time.monotonic() + request['timeout']
-        while not client.service_is_ready():
-            if time.monotonic() > deadline:
-                fail(f"service {request['service']} did not appear within {request['timeout']} s")
-            rclpy.spin_once(node, timeout_sec=0.05)
-        future = client.call_async(deserialize_message(base64.b64decode(request['request']), kind.Request))
-        rclpy.spin_until_future_complete(node, future, timeout_sec=max(0.1, deadline - time.monotonic()))
-        if not future.done():
-            fail(f"{request['service']} did not answer within {request['timeout']} s")
-        answers.append(base64.b64encode(serialize_message(future.result())).decode())
+        try:
+            response = call(node, executor, kind, request['service'],
+                            deserialize_message(base64.b64decode(request['request']), kind.Request),
+                            timeout=request['timeout'])
+        except AssertionError as err:
+            fail(str(err))
+        answers.append(base64.b64encode(serialize_message(response)).decode())
     sys.stdout.write(json.dumps(answers))
     sys.stdout.flush()
     os._exit(0)

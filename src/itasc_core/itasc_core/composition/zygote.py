@@ -17,12 +17,15 @@ from __future__ import annotations
 import ctypes
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
 import threading
-import time
 import traceback
+from typing import Iterator
+
+from .model import CompositeModel, EntityModel
 
 __all__ = ['Zygote', 'ForkedProcess', 'HOST_COMMAND', 'zygote_for']
 
@@ -41,6 +44,11 @@ class ForkedProcess:
         self.args = args
         self.returncode: int | None = None
         self._lock = threading.Lock()
+        #: readable once the process ended: a wait blocks on it, as Popen's blocks in waitpid
+        self._pidfd = os.pidfd_open(pid)
+
+    def __del__(self) -> None:
+        os.close(self._pidfd)
 
     def poll(self) -> int | None:
         with self._lock:
@@ -51,13 +59,10 @@ class ForkedProcess:
             return self.returncode
 
     def wait(self, timeout: float | None = None) -> int:
-        deadline = None if timeout is None else time.monotonic() + timeout
-        delay = 0.001
-        while (code := self.poll()) is None:
-            if deadline is not None and time.monotonic() > deadline:
-                raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
-            time.sleep(delay)
-            delay = min(2 * delay, 0.05)
+        select.select([self._pidfd], [], [], timeout)
+        code = self.poll()
+        if code is None:
+            raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
         return code
 
     def send_signal(self, signum: int) -> None:
@@ -172,27 +177,26 @@ def _run(argv: list[str]) -> None:
         os._exit(code)
 
 
-def zygote_for(model) -> Zygote | None:
-    """The zygote of a process that hosts composite ``model`` (a
-    :class:`~.model.CompositeModel`) and deploys its children in processes of their own, with
+def zygote_for(model: CompositeModel) -> Zygote | None:
+    """The zygote of a process that hosts composite ``model`` and deploys its children in processes of their own, with
     every kind of its descendants imported; None when ``model`` has no child composite, now or in a
     composition step."""
     from .registry import resolve_kind
 
-    composites = [c for c in _members(model) if hasattr(c, 'entities')]
+    composites = [c for c in _members(model) if isinstance(c, CompositeModel)]
     if not composites:
         return None
     for composite in composites:
         for member in _members(composite, deep=True):
-            if not hasattr(member, 'entities'):
+            if not isinstance(member, CompositeModel):
                 resolve_kind(member.kind)
     return Zygote.make()
 
 
-def _members(model, *, deep: bool = False):
+def _members(model: CompositeModel, *, deep: bool = False) -> Iterator[EntityModel | CompositeModel]:
     """The entities and child composites of ``model`` and of its composition steps (with ``deep``,
     of its descendants too)."""
     for member in [*model.entities, *(e for step in model.composition_steps.values() for e in (*step.add, *step.swap))]:
         yield member
-        if deep and hasattr(member, 'entities'):
+        if deep and isinstance(member, CompositeModel):
             yield from _members(member, deep=True)
