@@ -100,7 +100,7 @@ def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', re
         raise RuntimeError(f"{app}: no tick ({summary['ended']}, exit {summary['exit_code']}):\n{err[-3000:]}")
     return {
         'achieved_hz': rate_['achieved'], 'tick_p50_us': rate_['tick_p50'] * 1e6,
-        'tick_p99_us': rate_['tick_p99'] * 1e6, 'ticks': rate_['ticks'],
+        'tick_p99_us': rate_['tick_p99'] * 1e6, 'ticks': rate_['ticks'], 'dropped_ticks': rate_.get('dropped', 0),
         'qp_p50_us': None if rate_.get('solve_p50') is None else rate_['solve_p50'] * 1e6,
         'bring_up_s': summary.get('up_after'), 'start_to_running_s': running_at[0] if running_at else None,
         'exit_code': summary['exit_code'], 'wall_s': time.monotonic() - began, 'load_before': load,

@@ -1,16 +1,26 @@
-"""The Timer's hold on the interpreter's switch interval (:mod:`itasc_core.coordination.timer`): it is
-the process's, so with two Timers in one process (two applications, as in a test process) the
-shorter interval holds until the last Timer is gone, then the interpreter's own comes back."""
+"""The Timer (:mod:`itasc_core.coordination.timer`), on rclpy's executor as the runtime spins it.
+
+Its schedule: a tick that outlasts its period is followed at once by the one it delayed, so the
+hierarchy is ticked at the rate asked for; behind by more than ``catch_up`` periods it drops what it
+missed instead of a burst of stale ticks, and a hierarchy slower than its rate still leaves the
+executor to its other work.
+
+Its hold on the interpreter's switch interval: it is the process's, so with two Timers in one
+process (two applications, as in a test process) the shorter interval holds until the last Timer is
+gone, then the interpreter's own comes back."""
 
 from __future__ import annotations
 
 import sys
+import time
+from typing import Callable
 
 import pytest
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
 from itasc_core.coordination.scheduler import Scheduler
+from itasc_core.composition.deployment import make_executor
 from itasc_core.coordination.timer import Timer
 from itasc_core.entity import CompositeContext
 
@@ -42,3 +52,65 @@ def test_the_shortest_interval_holds_until_the_last_timer_is_gone(timer):
     assert sys.getswitchinterval() == pytest.approx(min(before, 1 / 20 / 20))  # the 20 Hz Timer's: 2.5 ms
     second.destroy_node()
     assert sys.getswitchinterval() == pytest.approx(before)
+
+
+class _Hierarchy:
+    """What the Timer ticks, in place of a root Scheduler: the ``k``-th tick takes ``cost(k)`` s."""
+
+    active = True
+
+    def __init__(self, cost: Callable[[int], float]) -> None:
+        self.cost = cost
+        self.starts: list[float] = []
+
+    def tick(self, t: float) -> None:
+        self.starts.append(time.monotonic())
+        time.sleep(self.cost(len(self.starts)))
+
+
+def _run(hierarchy: _Hierarchy, *, rate: float, seconds: float, also: Callable[[], None] | None = None):
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        context = CompositeContext(name='root', namespace='/timer_test/root')
+        timer = Timer(composite=context, scheduler=hierarchy, rate=rate)  # type: ignore[arg-type]
+        executor = make_executor()
+        executor.add_node(timer)
+        if also is not None:
+            timer.create_timer(0.05, also)
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.01)
+        timer.destroy_node()
+        return timer
+    finally:
+        rclpy.try_shutdown()
+
+
+def test_a_tick_longer_than_its_period_is_followed_at_once_by_the_one_it_delayed():
+    # Two ticks in four take 1.6 periods: the third of four starts more than a period late, and a
+    # ROS timer drops that period (~150 ticks in 2 s); on average a tick takes less than a period,
+    # so none need be dropped.
+    hierarchy = _Hierarchy(lambda k: 0.016 if k % 4 in (0, 1) else 0.001)
+    timer = _run(hierarchy, rate=100.0, seconds=2.0)
+    assert len(hierarchy.starts) >= 196
+    assert timer.dropped == 0
+    assert timer.achieved_rate() == pytest.approx(100.0, rel=0.02)
+
+
+def test_a_stall_drops_what_it_missed_instead_of_a_burst_of_stale_ticks():
+    hierarchy = _Hierarchy(lambda k: 0.2 if k == 20 else 0.001)  # a stall of 20 periods
+    timer = _run(hierarchy, rate=100.0, seconds=1.0)
+    after = [s for s in hierarchy.starts if s > hierarchy.starts[19] + 0.2]
+    burst = [s for s in after if s < after[0] + 0.005]  # started back to back after the stall
+    assert len(burst) <= timer.catch_up + 1
+    assert timer.dropped >= 20 - timer.catch_up - 2
+    assert len(hierarchy.starts) + timer.dropped == pytest.approx(100, abs=2)
+
+
+def test_a_hierarchy_slower_than_its_rate_leaves_the_executor_to_its_other_work():
+    hierarchy = _Hierarchy(lambda k: 0.015)  # 1.5 periods, every tick
+    other: list[float] = []
+    timer = _run(hierarchy, rate=100.0, seconds=1.0, also=lambda: other.append(time.monotonic()))
+    assert len(other) >= 15  # a 20 Hz timer of the same executor
+    assert timer.dropped > 0
+    assert len(hierarchy.starts) == pytest.approx(1.0 / 0.015, abs=4)

@@ -161,6 +161,7 @@ class RunFacts:
         self.running_since: float | None = None   # stamp of the first composite in Running
         self.ticks = Distribution()                  # the Timer's tick durations (s)
         self.recent_ticks: deque = deque(maxlen=RECENT)
+        self.dropped_ticks = 0                       # due while the Timer was too far behind to catch up
         self.solve_times = Distribution()            # the Solver's solve times (s)
         self._last_tick = -math.inf
         self._tick_span: list[float] = []          # first and last tick (monotonic)
@@ -183,9 +184,11 @@ class RunFacts:
         self.solver_status = msg.status
         self.solve_times.add(msg.solve_time)
 
-    def on_ticks(self, stamps, durations) -> None:
+    def on_ticks(self, stamps, durations, *, dropped: int = 0) -> None:
         """The Timer's latest ticks (monotonic start, duration; oldest first): those not seen yet
-        are kept. Walks back from the newest, so a poll costs what is new."""
+        are kept. Walks back from the newest, so a poll costs what is new. ``dropped``: how many
+        ticks the Timer has dropped so far."""
+        self.dropped_ticks = dropped
         new = []
         for stamp, duration in zip(reversed(stamps), reversed(durations)):
             if stamp <= self._last_tick:

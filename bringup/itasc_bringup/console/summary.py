@@ -50,7 +50,7 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
                   for composite, path in facts.paths().items()},  # parents first
         'tasks': tasks,
         'rate': {'target': target_rate, 'achieved': facts.achieved_rate(),
-                 'tick_p50': p50, 'tick_p99': p99, 'ticks': facts.ticks.count,
+                 'tick_p50': p50, 'tick_p99': p99, 'ticks': facts.ticks.count, 'dropped': facts.dropped_ticks,
                  'solve_p50': facts.solve_percentile(50)},
         'solver_status': facts.solver_status or None,
         'recording': recording,
@@ -87,7 +87,8 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(f'  {"tasks" if i == 0 else "":<6} {task["task"]:<{width}}  {what}')
     rate = summary['rate']
     lines.append(f'  {"rate":<6} {rate["achieved"]:.1f} Hz (target {rate["target"]:g}), '
-                 f'tick p50 {_ms(rate["tick_p50"])}, p99 {_ms(rate["tick_p99"])}, solver p50 {_ms(rate["solve_p50"])}')
+                 f'tick p50 {_ms(rate["tick_p50"])}, p99 {_ms(rate["tick_p99"])}, solver p50 {_ms(rate["solve_p50"])}'
+                 + (f', {rate["dropped"]} ticks dropped (the Timer was too far behind)' if rate['dropped'] else ''))
     if summary['up_after'] is not None:
         lines.append(f'  {"up":<6} Running {summary["up_after"]:.2f} s after the start')
     if summary['recording']:

@@ -51,4 +51,4 @@ class Watch:
     def poll_timer(self, timer) -> None:
         """Take the root Timer's latest tick times (its window is bounded: poll it often)."""
         if timer is not None:
-            self.facts.on_ticks(timer.stamps, timer.durations)
+            self.facts.on_ticks(timer.stamps, timer.durations, dropped=timer.dropped)
