@@ -20,16 +20,19 @@ def _ratio(value) -> str:
 
 
 def _row(what: str, r: dict) -> str:
-    return (f"| {what} | {r['achieved_hz']:.1f} | {_us(r['tick_p50_us'])} | {_us(r['tick_p99_us'])} | "
+    solver_hz = r.get('solver_hz')
+    return (f"| {what} | {r['achieved_hz']:.1f} | {'-' if solver_hz is None else f'{solver_hz:.1f}'} | "
+            f"{r.get('dropped_ticks', '-')} | {_us(r['tick_p50_us'])} | {_us(r['tick_p99_us'])} | "
             f"{_us(r.get('qp_p50_us'))} | {_us(r.get('solver_p50_us'))} | {_ratio(r.get('tick_over_solver'))} | "
             f"{_us(r.get('solver_paced_p50_us'))} | {_ratio(r.get('tick_over_solver_paced'))} | "
             f"{_us(r.get('handwritten_p50_us'))} | {_ratio(r.get('tick_over_handwritten'))} | "
             f"{_s(r.get('bring_up_s'))} | {_s(r.get('start_to_running_s'))} | {r['load_before']:.1f} |")
 
 
-HEADER = ('| run | achieved Hz | tick p50 µs | tick p99 µs | QP p50 µs (in the app) | solver step p50 µs | '
-          'tick / solver step | solver step paced p50 µs | tick / paced step | hand-written p50 µs | '
-          'tick / hand-written | up after s (rclpy.init) | up after s (process start) | load |\n|' + '---|' * 14)
+HEADER = ('| run | achieved Hz | Solver Hz | ticks dropped | tick p50 µs | tick p99 µs | QP p50 µs (in the app) | '
+          'solver step p50 µs | tick / solver step | solver step paced p50 µs | tick / paced step | '
+          'hand-written p50 µs | tick / hand-written | up after s (rclpy.init) | up after s (process start) | '
+          'load |\n|' + '---|' * 16)
 
 
 def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Path) -> None:
@@ -49,7 +52,10 @@ def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Pat
         'loop runs (on these VMs a step after a pause of a period takes up to twice as long as one right after '
         'another). '
         '*Hand-written*: one rclpy node reading `joint_states` from a simulated driver in another process, running '
-        'that same step and publishing the command (`bench/handwritten.py`), same run.',
+        'that same step and publishing the command (`bench/handwritten.py`), same run. '
+        '*Solver Hz*: the Solver\'s steps a second while Running (with `--deploy per-composite` the program runs '
+        'in a process of its own, triggered by the root\'s Timer); *ticks dropped*: ticks the Timer dropped, more '
+        'than 5 periods behind (it runs the others late, at once).',
         '',
         f"![tick time and rate against the requested rate; bring-up and tick time against the number of Tasks]"
         f"({picture.name})",

@@ -51,7 +51,7 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
         'tasks': tasks,
         'rate': {'target': target_rate, 'achieved': facts.achieved_rate(),
                  'tick_p50': p50, 'tick_p99': p99, 'ticks': facts.ticks.count, 'dropped': facts.dropped_ticks,
-                 'solve_p50': facts.solve_percentile(50)},
+                 'solve_p50': facts.solve_percentile(50), 'solves': facts.solve_times.count},
         'solver_status': facts.solver_status or None,
         'recording': recording,
         'plot_command': f'itasc-plot {recording}' if recording else None,
