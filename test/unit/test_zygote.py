@@ -70,3 +70,18 @@ def _alive(pid: int) -> bool:
         return False
     with open(f'/proc/{pid}/stat', 'rb') as stat:  # a zombie is dead, waiting for its parent
         return stat.read().rsplit(b')', 1)[1].split()[0] != b'Z'
+
+
+def test_a_composite_process_still_starts_once_the_zygote_is_gone():
+    script = SCRIPT.split('bogus =')[0] + textwrap.dedent('''
+        import signal
+        os.kill(zygote.pid, signal.SIGKILL)
+        os.waitpid(zygote.pid, 0)
+        first, second = zygote.start(['--no-such-option']), zygote.start(['--no-such-option'])
+        print(json.dumps({'codes': [first.wait(timeout=60), second.wait(timeout=60)], 'gone': zygote.gone}))
+    ''')
+    done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    # started as new interpreters: argparse of the host refuses the option, as in a forked one
+    assert json.loads(done.stdout) == {'codes': [2, 2], 'gone': True}
+    assert 'is gone' in done.stderr and done.stderr.count('usage: host.py') == 2

@@ -9,7 +9,8 @@ A fork is safe only from a process without other threads, so the zygote is made 
 re-parented to the process that asked for it (a child subreaper), which waits for it as for a child
 of its own; :class:`ForkedProcess` answers like :class:`subprocess.Popen`. The child shows the
 command line a started composite process has (``ps``, ``pgrep -f itasc_core.composition.host``).
-The zygote ends when the process that made it does (end of its request pipe).
+The zygote ends when the process that made it does (end of its request pipe). Should it end before
+(killed), composite processes are started as new interpreters from then on: slower, never refused.
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ class Zygote:
     def __init__(self, *, requests: int, answers: int, pid: int) -> None:
         self._requests, self._answers, self.pid = requests, answers, pid
         self._lock = threading.Lock()
+        self.gone = False
 
     @classmethod
     def make(cls) -> Zygote | None:
@@ -105,12 +107,21 @@ class Zygote:
         os.close(answers_w)
         return cls(requests=requests_w, answers=answers_r, pid=pid)
 
-    def start(self, argv: list[str]) -> ForkedProcess:
-        """Fork the composite process of ``argv`` (the arguments of ``itasc_core.composition.host``)."""
+    def start(self, argv: list[str]) -> ForkedProcess | subprocess.Popen:
+        """Fork the composite process of ``argv`` (the arguments of ``itasc_core.composition.host``);
+        once the zygote is gone, start it as a new interpreter."""
         with self._lock:
-            os.write(self._requests, (json.dumps(argv) + '\n').encode())
-            pid = int(_read_line(self._answers))
-        return ForkedProcess(pid, args=[*HOST_COMMAND, *argv])
+            if not self.gone:
+                try:
+                    os.write(self._requests, (json.dumps(argv) + '\n').encode())
+                    return ForkedProcess(int(_read_line(self._answers)), args=[*HOST_COMMAND, *argv])
+                except (OSError, RuntimeError) as err:
+                    self.gone = True
+                    from rclpy.logging import get_logger
+                    get_logger('itasc_zygote').warning(
+                        f'the zygote (pid {self.pid}) is gone ({err}): composite processes are started as new '
+                        'interpreters from now on')
+        return subprocess.Popen([*HOST_COMMAND, *argv])
 
 
 def _read_line(fd: int) -> str:
