@@ -179,9 +179,13 @@ def main(argv: list[str] | None = None) -> int:
                                 elapsed=lambda: None if running_since is None
                                 else ran_for or time.monotonic() - running_since)
 
+        from .console import Waits
+        waits = Waits(model)
+
         def on_transition(transition) -> None:
             outcome.saw_state(transition.composite, transition.state)
             console.on_transition(transition)
+            waits.on_transition(transition)
 
         from .recording.topics import data_flow_topics
         solver_topics = [t for t, kind in data_flow_topics(model, namespace=root.namespace).items()
@@ -214,6 +218,8 @@ def main(argv: list[str] | None = None) -> int:
             runtime.reap()
             watch.poll_timer(composer.timer)
             console.show_safety()
+            for line in waits.due():
+                console.show(line)
             console.refresh()
             state = coordinator.state
             if running_since is None and state.startswith('Active.Run.Running'):

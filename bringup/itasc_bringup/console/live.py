@@ -71,6 +71,12 @@ class LiveConsole:
         self.console.print(Text(line, style='bold red'))
         self._live.refresh()
 
+    def show(self, line: str) -> None:
+        """A line of its own above the view (a notice such as :mod:`.waiting`'s), also into the trace."""
+        self._trace.write(line)
+        self.console.print(line, markup=False, highlight=False)
+        self._live.refresh()
+
     def refresh(self) -> None:
         now = time.monotonic()
         if now - self._drawn_at >= self._period:

@@ -80,6 +80,11 @@ class PlainConsole:
         self._trace.write(line)
         self._print(line)
 
+    def show(self, line: str) -> None:
+        """A line of its own (a notice such as :mod:`.waiting`'s), also into the trace."""
+        self._trace.write(line)
+        self._print(line)
+
     def refresh(self) -> None:
         """With ``--verbose``: a ``[status]`` line at most once a second, when it changed."""
         if not self._verbose:
