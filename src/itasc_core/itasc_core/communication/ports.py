@@ -12,6 +12,13 @@ into its sample. An output builds and publishes the ROS message only while a DDS
 (another process, ``ros2 topic echo``), so co-located connections pay for nothing they do not
 need. Observers in the process (the recorder, the console) *tap* an output instead of reading it
 over DDS (:meth:`OutputPort.tap`): they get every sample, and the tick pays no DDS send for them.
+
+A child composite in another process that its parent's Scheduler has switched off (a Task not
+active in the current state of the Running sub-FSM) computes nothing, so its readers do not count
+as listening (:meth:`LocalBus.set_idle`): data sent only to it would cost a send here and a wake-up
+there every tick (``--deploy per-composite`` at 500 Hz, an inactive Task's process took 10 % of a
+core). Its first tick after it is switched on again gets the sample of that tick, sent before its
+trigger.
 """
 
 from __future__ import annotations
@@ -106,6 +113,8 @@ class LocalBus:
     def __init__(self) -> None:
         self._outputs: dict[str, OutputPort] = {}
         self._watchers: list[Callable[[OutputPort], None]] = []
+        #: Namespaces of the composites switched off (their readers do not count as listening).
+        self.idle: frozenset[str] = frozenset()
 
     @classmethod
     def of(cls, context: Context) -> 'LocalBus':
@@ -132,6 +141,15 @@ class LocalBus:
         finally:
             cls._deferring.ports = None
 
+    def set_idle(self, namespace: str, idle: bool) -> None:
+        """The composite of ``namespace`` (and what it holds) is switched off (``idle``) or on: every
+        output of the process looks again at who listens before its next send."""
+        changed = self.idle | {namespace} if idle else self.idle - {namespace}
+        if changed != self.idle:
+            self.idle = changed
+            for port in self._outputs.values():
+                port.recheck()
+
     def replace(self, port: 'OutputPort') -> None:
         """Register ``port`` in place of the output of its topic, whose in-process links and taps it
         took over (:meth:`OutputPort.take_over`)."""
@@ -157,21 +175,41 @@ class LocalBus:
 class ListenedPublisher:
     """A publisher that builds and sends a sample's message only while a DDS reader listens (a
     publish with a reader costs a Fast DDS send in the publishing thread, a sample's message
-    its conversion); who listens is looked up every :attr:`RECHECK_PERIOD` seconds."""
+    its conversion); who listens is looked up every :attr:`RECHECK_PERIOD` seconds. A reader of a
+    composite switched off (``idle``, namespaces) does not listen."""
 
     #: How often the number of DDS subscribers is looked up again (seconds).
     RECHECK_PERIOD = 0.2
 
-    def __init__(self, node: Node, msg_type: type, topic: str, qos) -> None:
+    def __init__(self, node: Node, msg_type: type, topic: str, qos,
+                 idle: Callable[[], frozenset[str]] = frozenset) -> None:
         self.publisher = node.create_publisher(msg_type, topic, qos)
+        self._node, self._topic, self._idle = node, topic, idle
         self._listened = False
-        self._checked_at = 0.0
+        self._checked_at = -float('inf')
+        #: The reader count and idle composites the last look at the readers' namespaces was for.
+        self._looked_for: tuple[int, frozenset[str]] | None = None
+
+    def recheck(self) -> None:
+        """Look at who listens before the next send."""
+        self._checked_at = -float('inf')
+
+    def _listening(self) -> bool:
+        count, idle = self.publisher.get_subscription_count(), self._idle()
+        if not count or not idle:
+            return count > 0
+        if self._looked_for != (count, idle):  # a graph query: only when readers or idle composites changed
+            self._looked_for = (count, idle)
+            self._listened = any(
+                not any(info.node_namespace == ns or info.node_namespace.startswith(ns + '/') for ns in idle)
+                for info in self._node.get_subscriptions_info_by_topic(self._topic))
+        return self._listened
 
     def publish(self, sample: Any) -> None:
         now = time.monotonic()
         if now - self._checked_at > self.RECHECK_PERIOD:
             self._checked_at = now
-            self._listened = self.publisher.get_subscription_count() > 0
+            self._listened = self._listening()
         if self._listened:
             self.publisher.publish(as_message(sample))
 
@@ -184,11 +222,11 @@ class OutputPort:
         self.spec = spec
         self.topic = spec.id
         self._node = node
-        self._dds = ListenedPublisher(node, spec.msg_type, spec.id, DATA_QOS)
+        self._bus = LocalBus.of(node.context)
+        self._dds = ListenedPublisher(node, spec.msg_type, spec.id, DATA_QOS, idle=lambda: self._bus.idle)
         self._sinks: list[InputPort] = []
         self._taps: list[Callable[[str, Any], None]] = []
         self.last: Any = None
-        self._bus = LocalBus.of(node.context)
         self._bus.register(self)
 
     def link(self, sink: 'InputPort') -> None:
@@ -217,6 +255,10 @@ class OutputPort:
         self._taps, old._taps = old._taps + [t for t in self._taps if t not in old._taps], []
         self.last = old.last
         self._bus.replace(self)
+
+    def recheck(self) -> None:
+        """Look at who listens over DDS before the next send (:meth:`LocalBus.set_idle`)."""
+        self._dds.recheck()
 
     @property
     def last_message(self) -> Any:

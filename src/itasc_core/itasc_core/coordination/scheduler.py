@@ -24,6 +24,7 @@ from std_msgs.msg import Float64
 from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENGAGED, SAFETY, SAFETY_EVENT,
                                           SCHEDULER_ACTIVATE, SCHEDULER_ACTIVATED, SCHEDULER_INITIALIZE,
                                           SCHEDULER_INITIALIZED, event, named)
+from ..communication.ports import LocalBus
 from ..communication.qos import DATA_QOS
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
@@ -40,8 +41,9 @@ class _Item:
     enabled: bool = True
     #: A child composite in this process: its Scheduler, reached through its Composer.
     child: Any = None
-    #: A child composite in another process: the publisher of its trigger topic.
+    #: A child composite in another process: the publisher of its trigger topic, its namespace.
     trigger: Any = None
+    namespace: str | None = None
 
 
 class Scheduler(Entity):
@@ -59,6 +61,7 @@ class Scheduler(Entity):
         self.safety = False
         self.ticks = 0
         self.faulted = False
+        self._bus = LocalBus.of(self.context)
         c = composite.name
         self._handlers = {
             event(c, SCHEDULER_INITIALIZE): self._initialize,
@@ -92,7 +95,7 @@ class Scheduler(Entity):
 
         def trigger(t: float) -> None:
             publisher.publish(Float64(data=t))
-        self._insert(_Item(name, trigger, enabled=enabled, trigger=publisher), None)
+        self._insert(_Item(name, trigger, enabled=enabled, trigger=publisher, namespace=namespace), None)
 
     def add_monitor(self, monitor: Monitor) -> None:
         self._monitors.append(monitor)
@@ -101,6 +104,8 @@ class Scheduler(Entity):
         for item in self._items:
             if item.name == name and item.trigger is not None:
                 self.destroy_publisher(item.trigger)
+            if item.name == name and item.namespace is not None:
+                self._bus.set_idle(item.namespace, False)
         self._items = [i for i in self._items if i.name != name]
         self._monitors = [m for m in self._monitors if m.entity_name != name]
 
@@ -116,6 +121,12 @@ class Scheduler(Entity):
     def _insert(self, item: _Item, index: int | None) -> None:
         self.remove(item.name)
         self._items.insert(len(self._items) if index is None else index, item)
+        self._enable(item, item.enabled)
+
+    def _enable(self, item: _Item, enabled: bool) -> None:
+        item.enabled = enabled
+        if item.namespace is not None:  # a child composite in another process: off, it listens to nothing
+            self._bus.set_idle(item.namespace, not enabled)
 
     @property
     def order(self) -> list[str]:
@@ -138,10 +149,10 @@ class Scheduler(Entity):
             return
         for item in self._items:
             if msg.name == event(item.name, ACTIVATE) and not item.enabled:
-                item.enabled = True
+                self._enable(item, True)
                 self._reactivate(item)
             elif msg.name == event(item.name, DEACTIVATE):
-                item.enabled = False
+                self._enable(item, False)
 
     def _reactivate(self, item: _Item) -> None:
         if item.entity is not None:
