@@ -11,8 +11,8 @@ as Fast DDS writes them for ROS 2. Field types outside what the data flow uses g
 
 Where a field starts, and so the padding before it, depends on the lengths of the strings and
 sequences before it; in a data flow these stay the same tick after tick (the names of a port do not
-change, nor the sizes of its arrays). So an encoder keeps, per *shape* (the values of its strings,
-the name lists by identity, the sizes of its number sequences), a template: one ``struct`` format
+change, nor the sizes of its arrays). So an encoder keeps, per *shape* (the values of its strings and
+name lists, the sizes of its number sequences), a template: one ``struct`` format
 holding the padding and the encoded strings and counts, which the numbers of each message fill in a
 single ``pack`` (1-3 us a message, against 4-12 us written field by field). Padding bytes are
 zeros (Fast CDR leaves them undefined): the bytes decode to the same message, they need not be
@@ -38,8 +38,8 @@ _SCALARS = {'double': ('d', 8), 'float': ('f', 4), 'int32': ('i', 4), 'uint32': 
             'uint64': ('Q', 8), 'int16': ('h', 2), 'uint16': ('H', 2), 'int8': ('b', 1), 'uint8': ('B', 1),
             'octet': ('B', 1), 'boolean': ('?', 1)}
 _U32 = struct.Struct('<I')
-#: The most templates an encoder keeps (a message class whose name lists are new objects every
-#: message would otherwise grow them without end).
+#: The most templates an encoder keeps (a topic whose strings or sizes change every message would
+#: otherwise grow them without end).
 _TEMPLATES = 64
 
 
@@ -140,11 +140,9 @@ class _Layout:
         self.offset += count * size
 
 
-def _template(fields: list[_Field], values: list[Any]) -> tuple[Callable[..., bytes], tuple[bytes, ...], tuple]:
-    """One shape's pack function, constant parts and name lists (held, so that their ids, in the
-    shape's key, stay theirs); ``values``: one message's fields."""
+def _template(fields: list[_Field], values: list[Any]) -> tuple[Callable[..., bytes], tuple[bytes, ...]]:
+    """One shape's pack function and constant parts; ``values``: one message's fields."""
     layout = _Layout()
-    names = []
     for field, value in zip(fields, values):
         if field.kind == 'scalar':
             layout.value(field.code, field.size)
@@ -152,7 +150,6 @@ def _template(fields: list[_Field], values: list[Any]) -> tuple[Callable[..., by
             layout.constant(_string(value), last=1)
         elif field.kind == 'strings':
             layout.constant(_strings(value), last=1 if len(value) else 4)
-            names.append(value)
         elif field.kind == 'numbers':
             layout.numbers(value.size, field.code, field.size)
         else:  # time, header
@@ -160,7 +157,7 @@ def _template(fields: list[_Field], values: list[Any]) -> tuple[Callable[..., by
             layout.value('I', 4)
             if field.kind == 'header':
                 layout.constant(_string(getattr(value, 'frame_id', '')), last=1)  # a sample's: its time
-    return struct.Struct(''.join(layout.format)).pack, tuple(layout.constants), tuple(names)
+    return struct.Struct(''.join(layout.format)).pack, tuple(layout.constants)
 
 
 def _compile(cls: type) -> Encode | None:
@@ -188,7 +185,9 @@ def _compile(cls: type) -> Encode | None:
                 continue
             key.append("''" if sample else f'{v}.frame_id')
         elif field.kind == 'strings':
-            key.append(f'id({v})')  # the template holds the list: its id is no other's while it is kept
+            # by value: a sample's names are often a new tuple each tick (a Solver's active tasks), and a
+            # tuple of the same strings hashes in ~0.1 us (a string keeps its hash), a template takes ~30 us
+            key.append(f'tuple({v})')
         else:
             key.append(f'{v}.size' if field.kind == 'numbers' else v)
         args.append(f'c[{constants}]')  # the string, the name list, or the count of the numbers
