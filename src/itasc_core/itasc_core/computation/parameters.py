@@ -170,22 +170,24 @@ def _choices(annotation: Any) -> list[str]:
     return []
 
 
+#: annotated_types' bounds and how a message says them.
+_LIMITS = {'ge': '>=', 'gt': '>', 'le': '<=', 'lt': '<'}
+
+
 def _bounds(info: FieldInfo) -> tuple[float, float, list[str]]:
     """Lowest and highest value a scalar field allows, and its constraints in words."""
     low, high, notes = -math.inf, math.inf, []
     for item in info.metadata:  # annotated_types' Ge, Gt, Le, Lt and MinLen, as pydantic keeps them
-        if getattr(item, 'ge', None) is not None:
-            low = max(low, float(item.ge))
-            notes.append(f'>= {item.ge}')
-        elif getattr(item, 'gt', None) is not None:
-            low = max(low, float(item.gt))
-            notes.append(f'> {item.gt}')
-        elif getattr(item, 'le', None) is not None:
-            high = min(high, float(item.le))
-            notes.append(f'<= {item.le}')
-        elif getattr(item, 'lt', None) is not None:
-            high = min(high, float(item.lt))
-            notes.append(f'< {item.lt}')
-        elif getattr(item, 'min_length', None):
-            notes.append('not empty' if item.min_length == 1 else f'at least {item.min_length} values')
+        for attribute, words in _LIMITS.items():
+            value = getattr(item, attribute, None)
+            if value is not None:
+                if attribute in ('ge', 'gt'):
+                    low = max(low, float(value))
+                else:
+                    high = min(high, float(value))
+                notes.append(f'{words} {value}')
+                break
+        else:
+            if getattr(item, 'min_length', None):
+                notes.append('not empty' if item.min_length == 1 else f'at least {item.min_length} values')
     return low, high, notes
