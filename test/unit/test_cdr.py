@@ -10,8 +10,8 @@ import pytest
 from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from itasc_bringup.recording import cdr
-from itasc_bringup.recording.cdr import encoder
+from itasc_core.communication import cdr
+from itasc_core.communication.cdr import encoder
 from itasc_bringup.recording.definitions import definition
 from itasc_core.communication.samples import Float64Sample, JointSample, as_message
 from itasc_core.itasc.entities.messages import (ControlSample, FeaturesSample, RowsSample, SetpointSample,

@@ -22,7 +22,7 @@ recorder through two readers is written once (:mod:`.duplicates`).
 
 Recording stays off the control path (issue #9). A data-flow output in this process is *tapped*
 (:mod:`..observe`): the tick hands the sample over and pays no DDS send for the recorder; the
-samples are turned into CDR bytes between ticks (:meth:`Recorder.drain`, :mod:`.cdr`: a few
+samples are turned into CDR bytes between ticks (:meth:`Recorder.drain`, :mod:`itasc_core.communication.cdr`: a few
 microseconds each, no ROS message built), a topic of another process is read over DDS as its raw
 bytes, and a process of its own compresses and writes the bag (:mod:`.writer`).
 
@@ -59,9 +59,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
+from itasc_core.communication.cdr import serialize
+
 from ..observe import Observer
 from .bag import qos_profiles
-from .cdr import serialize
 from .definitions import DefinitionNotFound, definition
 from .duplicates import Duplicates
 from .writer import BagProcess

@@ -38,10 +38,10 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
+
+from itasc_core.communication.cdr import serialize
 from itasc_core.communication.ports import LocalBus
 from itasc_msgs.msg import Features, TaskState
-
-from ..recording.cdr import serialize
 
 __all__ = ['LatestSamples', 'FeedWriter', 'FeedReader', 'display_topics', 'LATEST_QOS']
 

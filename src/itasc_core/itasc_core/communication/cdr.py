@@ -1,5 +1,5 @@
-"""CDR bytes of a data-flow sample, without building its ROS message (issue #9: recording off the
-control path).
+"""CDR bytes of a data-flow sample, without building its ROS message (issue #9: recording and
+visualization off the control path; paper §6.1, the data flow observable on its topics).
 
 A recording stores every message as the CDR bytes a DDS reader would have received. Building a
 sample's ROS message and serialising it with rclpy costs tens of microseconds per message, too
