@@ -198,8 +198,16 @@ class Recorder(Node):
         if not self._pending:
             return
         pending, self._pending = self._pending, []
-        self._write_all([(topic, channel_id, serialize(sample), tapped_at, 0, tapped_at)
-                         for topic, channel_id, tapped_at, sample in pending])
+        # a sample handed to two outputs (a driver's joint state, also on <robot>/joint_states) is
+        # encoded once; the pending list holds every sample, so no id is reused within it
+        encoded: dict[int, bytes] = {}
+        messages: list[tuple[str, int, bytes, int | None, int, int]] = []
+        for topic, channel_id, tapped_at, sample in pending:
+            data = encoded.get(id(sample))
+            if data is None:
+                data = encoded[id(sample)] = serialize(sample)
+            messages.append((topic, channel_id, data, tapped_at, 0, tapped_at))
+        self._write_all(messages)
 
     def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]
@@ -298,25 +306,27 @@ class Recorder(Node):
 
     def _write_all(self, messages: list[tuple[str, int, bytes, int | None, int, int]]) -> None:
         """Write each ``(topic, channel, data, sent, reader, received)`` (see :meth:`_write`)."""
-        written = []
         with self._lock:
             if self._closed:
                 return
             self._owner = threading.get_ident()
             try:
-                for topic, channel_id, data, sent, reader, received in messages:
-                    duplicates = self._duplicates.get(topic)
-                    if duplicates is not None and not duplicates.new(data, reader=reader):
-                        continue
-                    self._bag.write(channel_id, data, time_ns=received, publish_time_ns=sent)
-                    self.counts[topic] += 1
-                    self._last[topic] = data
-                    written.append(topic)
+                if self._duplicates:  # topics taken by several readers: each message once
+                    messages = [m for m in messages
+                                if (duplicates := self._duplicates.get(m[0])) is None
+                                or duplicates.new(m[2], reader=m[4])]
+                self._bag.write_all([(channel_id, data, received, received if sent is None else sent)
+                                     for _, channel_id, data, sent, _, received in messages])
+                counts, last = self.counts, self._last
+                for topic, _, data, _, _, _ in messages:
+                    counts[topic] += 1
+                    last[topic] = data
             finally:
                 self._owner = None
-        for topic in written:
-            for listener in self._listeners:
-                listener(topic)
+        if self._listeners:
+            for topic, *_ in messages:
+                for listener in self._listeners:
+                    listener(topic)
         if self._pending_interrupt:  # a signal arrived during the writes above
             self.close()
             raise KeyboardInterrupt

@@ -68,9 +68,15 @@ class BagProcess:
         return self._keys
 
     def write(self, key: int, data: bytes, *, time_ns: int, publish_time_ns: int | None = None) -> None:
-        self._pending += _RECORD.pack(key, time_ns, time_ns if publish_time_ns is None else publish_time_ns, len(data))
-        self._pending += data
-        if len(self._pending) >= BATCH:
+        self.write_all([(key, data, time_ns, time_ns if publish_time_ns is None else publish_time_ns)])
+
+    def write_all(self, records: Iterable[tuple[int, bytes, int, int]]) -> None:
+        """Write each ``(key, data, time_ns, publish_time_ns)`` (a tick's samples at once)."""
+        pending, pack = self._pending, _RECORD.pack
+        for key, data, time_ns, publish_time_ns in records:
+            pending += pack(key, time_ns, publish_time_ns, len(data))
+            pending += data
+        if len(pending) >= BATCH:
             self._flush_pending()
 
     def flush(self) -> None:
