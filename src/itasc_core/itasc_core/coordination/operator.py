@@ -43,7 +43,7 @@ from .lifecycle import LifecycleFsm
 from .recovery import (COMPOSER, FaultCheck, Faults, check_answer, check_request, is_fault, parse_answer,
                        parse_request)
 
-__all__ = ['Operator', 'OPERATOR', 'STOP_REQUESTED']
+__all__ = ['Operator', 'OPERATOR', 'STOP_REQUESTED', 'quoted']
 
 #: The source of the events an operator raises.
 OPERATOR = 'operator'
@@ -85,7 +85,7 @@ class Operator:
         allowed = self._fsm.running_events() | {SAFETY_EVENT}
         if not self._fsm.is_relevant(name):
             reacts = ', '.join(sorted(allowed))
-            return _answer(response, False, f"no state of {self._name}'s Coordinator reacts to '{name}'"
+            return _answer(response, False, f"no state of {self._name}'s Coordinator reacts to {quoted(name)}"
                                             f' (it reacts to: {reacts})')
         if name not in allowed:
             return _answer(response, False, f"'{name}' belongs to the life-cycle of {self._name}: use "
@@ -132,7 +132,7 @@ class Operator:
     def _compose(self, request, response, later: Later):
         step = request.step.strip()
         if step not in self._composition_steps:
-            return _answer(response, False, f"{self._name} has no composition step '{step}' "
+            return _answer(response, False, f"{self._name} has no composition step {quoted(step)} "
                                             f'(steps: {", ".join(self._composition_steps) or "none"})')
         state = self._fsm.state
         if not state.startswith('Active.Run.Running'):
@@ -241,6 +241,14 @@ class Operator:
         waiting, self._awaiting_running = self._awaiting_running, []
         for later in waiting:
             later.answer(_answer(Trigger.Response(), False, why))
+
+
+def quoted(text: str, *, limit: int = 80) -> str:
+    """``text`` quoted for an answer, shortened past ``limit`` characters (a client's request is
+    echoed, whatever it sent)."""
+    if len(text) <= limit:
+        return repr(text)
+    return f'{text[:limit]!r}... ({len(text)} characters)'
 
 
 def _answer(response, success: bool, message: str):
