@@ -65,16 +65,13 @@ class LiveConsole:
 
     def show_safety(self) -> None:
         line = self._outcome.new_safety_line()
-        if line is None:
-            return
-        self._trace.write(line)
-        self.console.print(Text(line, style='bold red'))
-        self._live.refresh()
+        if line is not None:
+            self.show(line, style='bold red')
 
-    def show(self, line: str) -> None:
+    def show(self, line: str, *, style: str = '') -> None:
         """A line of its own above the view (a notice such as :mod:`.waiting`'s), also into the trace."""
         self._trace.write(line)
-        self.console.print(line, markup=False, highlight=False)
+        self.console.print(Text(line, style=style))
         self._live.refresh()
 
     def refresh(self) -> None:

@@ -75,10 +75,8 @@ class PlainConsole:
     def show_safety(self) -> None:
         """Say once, on one line starting with ``SAFETY:``, why the run went to Safety."""
         line = self._outcome.new_safety_line()
-        if line is None:
-            return
-        self._trace.write(line)
-        self._print(line)
+        if line is not None:
+            self.show(line)
 
     def show(self, line: str) -> None:
         """A line of its own (a notice such as :mod:`.waiting`'s), also into the trace."""
