@@ -1,6 +1,6 @@
 """The process's event hub (itasc_core.communication.event_hub): the entities of a process share
-one DDS reader per event topic, each still gets every event in order, and a destroyed entity
-gets none and leaves no reader behind."""
+one DDS reader and one DDS writer per event topic, each still gets every event in order, and a
+destroyed entity gets none and leaves no reader behind."""
 
 from __future__ import annotations
 
@@ -8,9 +8,11 @@ import time
 
 import pytest
 import rclpy
+import rclpy.executors
 from rclpy.signals import SignalHandlerOptions
 
-from itasc_core.communication.events import EventRaiser
+from itasc_core.communication.events import Event, EventRaiser
+from itasc_core.communication.qos import EVENT_QOS
 from itasc_core.composition.deployment import Runtime, make_executor
 from itasc_core.entity import CompositeContext, Entity
 from ros_teardown import destroy_all
@@ -126,6 +128,50 @@ def test_an_event_raised_in_the_process_reaches_its_listeners_at_the_next_flush_
         outside_raiser.raise_event('e_outside')
         assert spin_until(executor, lambda: 'second e_outside' in heard)
         assert heard[4:] == ['first e_outside', 'second e_outside']
+        outside.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=other)
+
+
+def test_the_raisers_of_a_process_share_one_writer_per_topic_and_it_leaves_with_the_last_of_them(world):
+    """Every DDS endpoint of a process makes the later ones dearer to create (bring-up of large
+    programs): a process has one event writer per topic, not one per entity. Outside the process
+    every event still arrives, each naming the entity that raised it; once the last raiser of a
+    topic is destroyed, its writer is gone from the graph."""
+    executor, runtime, source = world
+    composite = CompositeContext(name='hub', namespace='/hub')
+    entities = [Entity(f'entity_{i}', composite=composite) for i in range(4)]
+    runtime.add(*entities)
+    topic = composite.events_topic
+    assert source.count_publishers(topic) == 1, 'four raisers, one DDS writer'
+
+    other = rclpy.Context()
+    rclpy.init(context=other, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        outside = rclpy.create_node('outside', context=other)
+        heard: list[tuple[str, str, int]] = []
+        outside.create_subscription(Event, topic, lambda m: heard.append((m.source, m.name, m.seq)), EVENT_QOS)
+        outside_executor = rclpy.executors.SingleThreadedExecutor(context=other)
+        outside_executor.add_node(outside)
+        assert spin_until(outside_executor, lambda: source.count_subscribers(topic) >= 1)
+        assert spin_until(outside_executor, lambda: entities[0]._raiser.publisher.get_subscription_count() >= 1)
+        for n in range(3):
+            for entity in entities:
+                entity.raise_event(f'e_{n}')
+        assert spin_until(outside_executor, lambda: len(heard) == 12), heard
+        for entity in entities:
+            assert [(name, seq) for who, name, seq in heard if who == entity.get_fully_qualified_name()] \
+                == [('e_0', 1), ('e_1', 2), ('e_2', 3)]
+
+        runtime.retire(entities[1:])
+        runtime.reap(wait=True)
+        assert source.count_publishers(topic) == 1, 'one raiser left: the writer stays'
+        entities[0].raise_event('e_last')
+        assert spin_until(outside_executor, lambda: heard[-1][1] == 'e_last')
+        runtime.retire(entities[:1])
+        runtime.reap(wait=True)
+        assert spin_until(outside_executor, lambda: outside.count_publishers(topic) == 0)
+        outside_executor.shutdown()
         outside.destroy_node()
     finally:
         rclpy.try_shutdown(context=other)

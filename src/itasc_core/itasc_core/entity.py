@@ -67,8 +67,15 @@ class Entity(Node):
                          start_parameter_services=parameter_services)
         self.composite = composite
         self.entity_name = name
-        self._raiser = EventRaiser(self, topic=composite.events_topic)
+        self._raisers: list[EventRaiser] = []
+        self._raiser = self.raiser(topic=composite.events_topic)
         self._listeners: list[EventListener] = []
+
+    def raiser(self, *, topic: str, source: str | None = None) -> EventRaiser:
+        """An :class:`EventRaiser` of this entity's on ``topic``, destroyed with it."""
+        raiser = EventRaiser(self, topic=topic, source=source)
+        self._raisers.append(raiser)
+        return raiser
 
     def listen(self, **listener_kwargs) -> EventListener:
         """An :class:`EventListener` of this entity's, destroyed with it."""
@@ -79,10 +86,6 @@ class Entity(Node):
     def raise_event(self, name: str, *, priority: bool = False, detail: str = '') -> None:
         self._raiser.raise_event(name, priority=priority, detail=detail)
 
-    @property
-    def event_publisher(self):
-        return self._raiser.publisher
-
     def detach(self) -> None:
         """Stop listening to events (before the node is destroyed)."""
         for listener in self._listeners:
@@ -91,4 +94,6 @@ class Entity(Node):
 
     def destroy_node(self) -> None:
         self.detach()
+        for raiser in self._raisers:
+            raiser.destroy()
         super().destroy_node()

@@ -16,6 +16,11 @@ next event that arrives over DDS, whichever comes first, and drops its copy comi
 Delivery is run to completion: an event raised by a listener while events are delivered waits
 until the one being delivered has reached every listener.
 
+The hub also owns the process's one writer per event topic, shared by all its raisers (the event
+names its source): every DDS endpoint of a process costs every later one of the process (ROS 2's
+graph bookkeeping announces the participant's whole list of endpoints on each change), and a writer
+per entity made a program's bring-up grow faster than its number of Tasks.
+
 The owner of a process's executor installs the hub (:meth:`EventHub.install`, done by
 :class:`~itasc_core.composition.deployment.Runtime`); an :class:`~.events.EventListener`
 created in a context without a hub subscribes on its own node as before.
@@ -31,11 +36,12 @@ from typing import Callable
 
 from rclpy.context import Context
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 
 from itasc_msgs.msg import Event
 
-from .qos import EVENT_LISTENER_QOS
+from .qos import EVENT_LISTENER_QOS, EVENT_QOS
 
 __all__ = ['EventHub']
 
@@ -68,6 +74,9 @@ class EventHub:
         self._echoes: set[tuple] = set()
         self._echoes_lock = threading.Lock()  # raisers of other threads add to it
         self._delivering = False
+        #: by topic: the shared writer and how many raisers use it
+        self._writers: dict[str, tuple[Publisher, int]] = {}
+        self._writers_lock = threading.Lock()  # raisers are created and destroyed off the tick path too
 
     #: The hub's node: hidden (``ros2 node list -a`` shows it), in the namespace of the composite
     #: the process was started for, where a parent's Composer looks for it.
@@ -105,6 +114,24 @@ class EventHub:
             del self._receivers[topic]
             with self._echoes_lock:  # no copy will come
                 self._echoes = {echo for echo in self._echoes if echo[0] != topic}
+
+    def writer(self, topic: str) -> Publisher:
+        """The process's writer of ``topic``'s events (:meth:`release` it once per call)."""
+        with self._writers_lock:
+            publisher, users = self._writers.get(topic, (None, 0))
+            if publisher is None:
+                publisher = self._node.create_publisher(Event, topic, EVENT_QOS)
+            self._writers[topic] = (publisher, users + 1)
+            return publisher
+
+    def release(self, topic: str) -> None:
+        """A raiser of ``topic`` is gone; the last one gone, the writer leaves the graph too."""
+        with self._writers_lock:
+            publisher, users = self._writers.pop(topic)
+            if users > 1:
+                self._writers[topic] = (publisher, users - 1)
+                return
+        self._node.destroy_publisher(publisher)
 
     def raising(self, msg: Event, topic: str) -> None:
         """``msg`` is about to be published on ``topic`` by a raiser of this process (any thread):

@@ -28,15 +28,18 @@ def events_topic(namespace: str) -> str:
 
 
 class EventRaiser:
-    """Publishes events of one source on one composite's event topic."""
+    """Publishes events of one source on one composite's event topic: through the writer of the
+    process's :class:`~.event_hub.EventHub` if it has one, otherwise through a writer of ``node``'s."""
 
     def __init__(self, node: Node, *, topic: str, source: str | None = None) -> None:
         self._node = node
         self._source = source or node.get_fully_qualified_name()
-        self._publisher = node.create_publisher(Event, topic, EVENT_QOS)
+        self._hub = EventHub.of(node.context)  # counts what the process raised
+        self._publisher = (self._hub.writer(topic) if self._hub is not None
+                           else node.create_publisher(Event, topic, EVENT_QOS))
+        self._live = True
         self._seq = 0
         self._lock = threading.Lock()
-        self._hub = EventHub.of(node.context)  # counts what the process raised
         self.topic = topic
 
     @property
@@ -61,7 +64,15 @@ class EventRaiser:
         return msg
 
     def destroy(self) -> None:
-        self._node.destroy_publisher(self._publisher)
+        """No more events from this raiser (idempotent)."""
+        with self._lock:
+            live, self._live = self._live, False
+        if not live:
+            return
+        if self._hub is not None:
+            self._hub.release(self.topic)
+        else:
+            self._node.destroy_publisher(self._publisher)
 
 
 class EventListener:

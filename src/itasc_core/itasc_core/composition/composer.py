@@ -273,11 +273,11 @@ class Composer(Entity):
     def when_children_listen(self, names: list[str], *, then: Callable[[], None],
                              otherwise: Callable[[list[str]], None], timeout: float = 30.0) -> None:
         """Call ``then`` once the process of every child of ``names`` that has one listens to our
-        event topic (its event hub, on behalf of the child's Coordinator) and its Coordinator talks
-        on it, so that no command to it can be lost to DDS discovery; ``otherwise(late)`` after
-        ``timeout`` s. Endpoints already there when the child's process was started are not that
-        process's: a child composite added back soon after its removal would be seen listening
-        through the endpoints of its old process, which lingers a moment after it stopped."""
+        event topic and its Coordinator talks on it (both through that process's event hub), so that
+        no command to it can be lost to DDS discovery; ``otherwise(late)`` after ``timeout`` s.
+        Endpoints already there when the child's process was started are not that process's: a
+        child composite added back soon after its removal would be seen listening through the
+        endpoints of its old process, which lingers a moment after it stopped."""
         remote = {self.composite.child(name).namespace: self._endpoints_before.get(name, set())
                   for name in names if self.children.get(name, 0) is None}
         if not remote:
@@ -293,7 +293,7 @@ class Composer(Entity):
         def poll() -> None:
             subscribers = self.get_subscriptions_info_by_topic(topic)
             publishers = self.get_publishers_info_by_topic(topic)
-            if all(ready(subscribers, EventHub.NODE_NAME, ns) and ready(publishers, 'coordinator', ns)
+            if all(ready(subscribers, EventHub.NODE_NAME, ns) and ready(publishers, EventHub.NODE_NAME, ns)
                    for ns in remote):
                 self.destroy_timer(timer)
                 then()
@@ -397,7 +397,7 @@ class Composer(Entity):
             namespace = f'{self.composite.namespace}/{child}'
             raiser = self._child_raisers.get(namespace)
             if raiser is None:
-                raiser = self._child_raisers[namespace] = EventRaiser(self, topic=events_topic(namespace))
+                raiser = self._child_raisers[namespace] = self.raiser(topic=events_topic(namespace))
             raiser.raise_event(event(child, BIND), detail=f'{port}|{topic}')
 
     def bind_export(self, port: str, topic: str) -> None:

@@ -21,7 +21,6 @@ from itasc_msgs.msg import CoordinatorState
 
 from ..communication.event_names import (CHILD_ADDED, CHILD_REMOVED, COMPOSE_FAILED, COMPOSED, NOTIFICATIONS, TIMEOUT,
                                           event, from_parent, is_addressed_to, step_of)
-from ..communication.events import EventRaiser
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
 from .lifecycle import LifecycleFsm, RunningFsmSpec
@@ -55,7 +54,7 @@ class Coordinator(Entity):
     ) -> None:
         super().__init__('coordinator', composite=composite)
         self.is_root = composite.parent_namespace is None
-        self._to_parent = self._raiser if self.is_root else EventRaiser(self, topic=composite.parent_events_topic)
+        self._to_parent = self._raiser if self.is_root else self.raiser(topic=composite.parent_events_topic)
         self._state_publisher = self.create_publisher(CoordinatorState, composite.state_topic, STATE_QOS)
         #: Every state entered, in order, with the event that caused it.
         self.history: list[tuple[str, str]] = []

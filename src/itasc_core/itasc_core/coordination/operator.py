@@ -63,7 +63,7 @@ class Operator:
         self._fsm = fsm
         self._raise_own = raise_own
         self._to_parent = to_parent
-        self._operator = EventRaiser(node, topic=composite.events_topic, source=OPERATOR)
+        self._operator = node.raiser(topic=composite.events_topic, source=OPERATOR)
         self.faults = Faults(composite.namespace)
         #: The parent is in Safety (it commanded ``e_<c>_emergency``, or was told by this composite).
         self.parent_in_safety = False
