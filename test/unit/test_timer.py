@@ -68,11 +68,13 @@ class _Hierarchy:
         self.cost = cost
         self.clock = clock
         self.starts: list[float] = []
+        self.ends: list[float] = []
 
     def tick(self, t: float) -> None:
         if self.clock is None:
             self.starts.append(time.monotonic())
             time.sleep(self.cost(len(self.starts)))
+            self.ends.append(time.monotonic())
         else:
             self.starts.append(self.clock.now)
             self.clock.now += self.cost(len(self.starts))
@@ -157,6 +159,12 @@ def test_a_hierarchy_slower_than_its_rate_leaves_the_executor_to_its_other_work(
     hierarchy = _Hierarchy(lambda k: 0.015)  # 1.5 periods, every tick
     other: list[float] = []
     timer = _run(hierarchy, rate=100.0, seconds=1.0, also=lambda: other.append(time.monotonic()))
-    assert len(other) >= 15  # a 20 Hz timer of the same executor
+    # a 20 Hz timer of the same executor has its turns (18-19 of 20 alone, 10-12 in a busy test
+    # process; a Timer that kept ticking while behind would leave it none)
+    assert len(other) >= 8
     assert timer.dropped > 0
-    assert len(hierarchy.starts) == pytest.approx(1.0 / 0.015, abs=4)
+    # ticked back to back, the hierarchy given all the time there is (a Timer that waited for the
+    # next period after a late tick would leave it idle a quarter of the time). Measured on what the
+    # ticks took, not on their count: this VM's sleeps overshoot (52 ticks of 15 ms in 1 s, CI)
+    busy = sum(end - start for start, end in zip(hierarchy.starts, hierarchy.ends))
+    assert busy / (hierarchy.ends[-1] - hierarchy.starts[0]) > 0.9
