@@ -56,8 +56,9 @@ class Hierarchy:
         # and those of composites removed since: their last states may have come in the same spin
         for name, coordinator in self.coordinators.items():
             seen = self.stamps.setdefault(name, [])
-            for state, _event in coordinator.history[len(seen):]:
-                seen.append((time.monotonic(), state))
+            for state, _event, entered_at in coordinator.history[len(seen):]:
+                # when it was entered: states entered in one spin are seen together, in any order
+                seen.append((entered_at, state))
 
     def states(self, name: str) -> list[str]:
         return [s for _, s in self.stamps[name]]

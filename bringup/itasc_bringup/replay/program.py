@@ -190,7 +190,7 @@ class _Replay:
         seconds = time.perf_counter() - began
         return Replayed(outputs={topic: [probe.by_stamp.get(t) for t in recording.ticks]
                                  for topic, probe in self.probes.items()},
-                        paths={ns.rsplit('/', 1)[-1]: running_path([state for state, _ in c.history])
+                        paths={ns.rsplit('/', 1)[-1]: running_path([state for state, *_ in c.history])
                                for ns, c in self.coordinators.items()},
                         seconds=seconds)
 

@@ -56,8 +56,8 @@ class Coordinator(Entity):
         self.is_root = composite.parent_namespace is None
         self._to_parent = self._raiser if self.is_root else self.raiser(topic=composite.parent_events_topic)
         self._state_publisher = self.create_publisher(CoordinatorState, composite.state_topic, STATE_QOS)
-        #: Every state entered, in order, with the event that caused it.
-        self.history: list[tuple[str, str]] = []
+        #: Every state entered, in order, with the event that caused it and when (time.monotonic).
+        self.history: list[tuple[str, str, float]] = []
         self.fsm = LifecycleFsm(
             composite=composite.name,
             children=children,
@@ -159,7 +159,7 @@ class Coordinator(Entity):
 
     def _publish_state(self, state: str, previous: str, event: str) -> None:
         self._entered_at = time.monotonic()
-        self.history.append((state, event))
+        self.history.append((state, event, self._entered_at))
         msg = CoordinatorState()
         msg.stamp = self.get_clock().now().to_msg()
         msg.composite = self.composite.name
