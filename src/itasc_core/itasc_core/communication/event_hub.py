@@ -17,9 +17,9 @@ Delivery is run to completion: an event raised by a listener while events are de
 until the one being delivered has reached every listener.
 
 The hub also owns the process's one writer per event topic, shared by all its raisers (the event
-names its source): every DDS endpoint of a process costs every later one of the process (ROS 2's
-graph bookkeeping announces the participant's whole list of endpoints on each change), and a writer
-per entity made a program's bring-up grow faster than its number of Tasks.
+names its source): every DDS endpoint of a process costs every later one of the process (Fast DDS
+pairs each new endpoint with every local one of the other kind), and a writer per entity made a
+program's bring-up grow faster than its number of Tasks.
 
 The owner of a process's executor installs the hub (:meth:`EventHub.install`, done by
 :class:`~itasc_core.composition.deployment.Runtime`); an :class:`~.events.EventListener`
