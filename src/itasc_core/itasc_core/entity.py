@@ -8,11 +8,14 @@ name and topics of its own composite, nothing else.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import wraps
+from typing import Callable
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from .communication.events import EventListener, EventRaiser, events_topic
+from .pace import PACE
 
 __all__ = ['CompositeContext', 'Entity']
 
@@ -52,6 +55,16 @@ class CompositeContext:
 _NO_TYPE_DESCRIPTION_SERVICE = Parameter('start_type_description_service', value=False)
 
 
+def _paced(call: Callable) -> Callable:
+    """``call`` (a method of rclpy's Node that creates or destroys an endpoint), made in a gap
+    between ticks when the calling thread is paced (:mod:`.pace`)."""
+    @wraps(call)
+    def paced(self, *args, **kwargs):
+        PACE.gap()
+        return call(self, *args, **kwargs)
+    return paced
+
+
 class Entity(Node):
     """An rclpy node that belongs to a composite and raises events on its event topic.
 
@@ -63,6 +76,7 @@ class Entity(Node):
     """
 
     def __init__(self, name: str, *, composite: CompositeContext, parameter_services: bool = False) -> None:
+        PACE.gap()
         super().__init__(name, namespace=composite.namespace, parameter_overrides=[_NO_TYPE_DESCRIPTION_SERVICE],
                          start_parameter_services=parameter_services)
         self.composite = composite
@@ -70,6 +84,15 @@ class Entity(Node):
         self._raisers: list[EventRaiser] = []
         self._raiser = self.raiser(topic=composite.events_topic)
         self._listeners: list[EventListener] = []
+
+    create_publisher = _paced(Node.create_publisher)
+    create_subscription = _paced(Node.create_subscription)
+    create_service = _paced(Node.create_service)
+    create_client = _paced(Node.create_client)
+    destroy_publisher = _paced(Node.destroy_publisher)
+    destroy_subscription = _paced(Node.destroy_subscription)
+    destroy_service = _paced(Node.destroy_service)
+    destroy_client = _paced(Node.destroy_client)
 
     def raiser(self, *, topic: str, source: str | None = None) -> EventRaiser:
         """An :class:`EventRaiser` of this entity's on ``topic``, destroyed with it."""

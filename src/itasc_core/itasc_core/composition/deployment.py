@@ -32,6 +32,7 @@ from rclpy.node import Node
 
 from ..communication.event_hub import EventHub
 from ..communication.ports import LocalBus
+from ..pace import PACE
 from .model import CompositeModel
 from .remote import HostClient, RemoteProcess
 from .zygote import HOST_COMMAND, ForkedProcess, Zygote
@@ -83,8 +84,10 @@ class Runtime:
         self.mode: DeployMode = mode
         self.host = host or os.environ.get('ITASC_HOST') or None
         self._retired: list[Node] = []
-        #: Work off the tick path: building nodes for a re-composition, destroying retired ones.
-        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='itasc-runtime')
+        #: Work off the tick path: building nodes for a re-composition, destroying retired ones. Its
+        #: ROS calls are made between the ticks (:mod:`..pace`).
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='itasc-runtime',
+                                          initializer=PACE.pace_this_thread)
         self._background = background
         self._doomed: list[Node] = []  # out of the executor, to be destroyed off the tick path
         self._doomed_lock = threading.Lock()

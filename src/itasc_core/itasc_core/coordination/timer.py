@@ -17,7 +17,9 @@ Other threads of the process (the Runtime's worker building a re-composition's e
 tick path, the recorder's writer) hold the interpreter for up to Python's switch interval (5 ms by
 default, half a period at 100 Hz) before a due tick gets it. While it runs, the Timer shortens that
 interval to a twentieth of its period, at least 0.5 ms (measured with ``bench/bench_recompose.py``
-at 100 Hz: ticks up to 2.9 periods apart while a step ran, 1.95 after).
+at 100 Hz: ticks up to 2.9 periods apart while a step ran, 1.95 after). A ROS call holds the
+interpreter longer, for the whole call: the worker makes its calls in the gap after a tick, which
+the Timer announces (:mod:`..pace`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from typing import Callable
 from rclpy.clock import Clock, ClockType
 
 from ..entity import CompositeContext, Entity
+from ..pace import PACE
 from .scheduler import Scheduler
 
 __all__ = ['Timer']
@@ -97,6 +100,7 @@ class Timer(Entity):
                 behind = 1
             self._tick()
             before = behind
+        PACE.ticked(id(self), next_due=self._t0 + (self.ticked + 1) / self.rate, period=1.0 / self.rate)
 
     def _tick(self) -> None:
         self.ticked += 1
@@ -117,4 +121,5 @@ class Timer(Entity):
     def destroy_node(self) -> None:
         self.destroy_timer(self._timer)
         _ask_switch_interval(id(self), None)
+        PACE.gone(id(self))
         super().destroy_node()
