@@ -78,6 +78,13 @@ def test_ticks_that_leave_no_gap_hold_a_call_back_a_few_ticks_only():
     thread.join()
 
 
+def test_a_timer_that_stopped_ticking_holds_no_call_back():
+    clock = Clock()
+    pace = Pace(clock=clock)
+    pace.ticked(1, next_due=clock.now - 1.5 * PERIOD, period=PERIOD)  # its process is stopping
+    assert call_in_a_paced_thread(pace)[1].wait(timeout=0.2), 'a call waited for a Timer that no longer ticks'
+
+
 def test_a_timer_that_ends_lets_the_waiting_call_go():
     clock = Clock()
     pace = Pace(clock=clock)

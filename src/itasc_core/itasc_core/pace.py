@@ -54,22 +54,23 @@ class Pace:
         self._paced.on = True
 
     def gap(self) -> None:
-        """In a paced thread: return once every Timer's next tick is at least :data:`NEED` away (half
-        its period, if shorter), or after :data:`PATIENCE` ticks; elsewhere at once."""
+        """In a paced thread: return once the next tick of the process is at least :data:`NEED` away
+        (half its Timer's period, if shorter), after :data:`PATIENCE` ticks, or at once when that
+        tick is more than a period overdue (its Timer stopped, or its executor is held: waiting for
+        it would only hold the work back); elsewhere at once."""
         if not getattr(self._paced, 'on', False):
             return
         with self._changed:
             self._waiting += 1  # before reading when ticks are due: a tick from now on wakes this
             try:
                 for _ in range(PATIENCE):
-                    due = list(self._due.values())
-                    if not due:
+                    if not self._due:
                         return
-                    left = min(next_due - self._clock() for next_due, _ in due)
-                    if left >= min(NEED, *(period / 2 for _, period in due)):
+                    next_due, period = min(self._due.values())
+                    left = next_due - self._clock()
+                    if left >= min(NEED, period / 2) or left < -period:
                         return
-                    # woken by the next tick; the timeout covers a Timer that ends between ticks
-                    self._changed.wait(timeout=max(left, 0.0) + max(period for _, period in due))
+                    self._changed.wait(timeout=left + period)  # woken by the tick
             finally:
                 self._waiting -= 1
 
