@@ -363,3 +363,52 @@ def test_every_topic_and_field_of_the_foxglove_layout_is_in_the_recording(messag
         used.append(topic)
     # the 3-D panel draws TF without being told; the layout shows the markers, the Tasks, the health
     assert f'/{APP}/markers' in used and '/diagnostics' in used and '/tf' in messages
+
+
+def test_a_burst_of_transitions_is_published_together_and_the_last_array_holds_every_final_state():
+    """A program of many Tasks makes hundreds of transitions as it starts: /diagnostics gets them
+    together (the bootstrap's executor, which also ticks, built an array of every composite's
+    status for each), and what it shows last is where every composite is."""
+    import time
+
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from itasc_bringup.visualization.diagnostics import Diagnostics
+    from itasc_bringup.visualization.feed import LatestSamples
+    from itasc_core.communication.qos import STATE_QOS
+    from itasc_msgs.msg import CoordinatorState
+
+    states = ['Active.Configure.Configuring', 'Active.Start.Starting', 'Active.Run.Running']
+    composites = {f'Task{i}': f'/burst/itasc/Task{i}' for i in range(60)}
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('burst', context=context)
+    try:
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        Diagnostics(node, app='burst', composites=composites, timer=lambda: None, solvers=LatestSamples(node, {}))
+        received: list[DiagnosticArray] = []
+        node.create_subscription(DiagnosticArray, '/diagnostics', received.append, 100)
+        publishers = {name: node.create_publisher(CoordinatorState, f'{ns}/state', STATE_QOS)
+                      for name, ns in composites.items()}
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end and not all(p.get_subscription_count() for p in publishers.values()):
+            executor.spin_once(timeout_sec=0.01)
+        received.clear()
+        for state in states:
+            for name, publisher in publishers.items():
+                publisher.publish(CoordinatorState(composite=name, state=state))
+        end = time.monotonic() + 1.5
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.01)
+    finally:
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+    assert received, 'nothing on /diagnostics'
+    last = {s.name: s.message for s in received[-1].status}
+    assert last == {f'burst: {ns}': states[-1] for ns in composites.values()}
+    transitions = len(composites) * len(states)
+    assert len(received) <= 40, f'{len(received)} arrays of {len(composites)} statuses for {transitions} transitions'
