@@ -175,3 +175,23 @@ def test_the_raisers_of_a_process_share_one_writer_per_topic_and_it_leaves_with_
         outside.destroy_node()
     finally:
         rclpy.try_shutdown(context=other)
+
+
+def test_a_raiser_destroyed_before_its_entity_is_let_go_of(world):
+    """A Composer raises on the topic of each child composite in a process of its own, and lets go
+    of that raiser when the child is removed: a long run that adds and removes Tasks keeps none."""
+    import gc
+    import weakref
+
+    executor, runtime, source = world
+    composite = CompositeContext(name='hub', namespace='/hub')
+    entity = Entity('composer', composite=composite)
+    runtime.add(entity)
+    raiser = entity.raiser(topic='/hub/child/events')
+    raiser.raise_event('e_child_bind')
+    gone = weakref.ref(raiser)
+    entity.destroy_raiser(raiser)
+    del raiser
+    gc.collect()
+    assert gone() is None, 'the entity still holds the raiser it destroyed'
+    assert spin_until(executor, lambda: source.count_publishers('/hub/child/events') == 0)

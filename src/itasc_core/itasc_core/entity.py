@@ -100,6 +100,12 @@ class Entity(Node):
         self._raisers.append(raiser)
         return raiser
 
+    def destroy_raiser(self, raiser: EventRaiser) -> None:
+        """No more events from ``raiser`` (one of :meth:`raiser`'s), and this entity lets go of it."""
+        raiser.destroy()
+        if raiser in self._raisers:
+            self._raisers.remove(raiser)
+
     def listen(self, **listener_kwargs) -> EventListener:
         """An :class:`EventListener` of this entity's, destroyed with it."""
         listener = EventListener(self, **listener_kwargs)

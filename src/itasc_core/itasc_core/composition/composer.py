@@ -424,7 +424,7 @@ class Composer(Entity):
         namespace = self.composite.child(name).namespace
         raiser = self._child_raisers.pop(namespace, None)
         if raiser is not None:
-            raiser.destroy()
+            self.destroy_raiser(raiser)
         if child is not None:
             self.runtime.retire([child.coordinator, child.configurator, child])
             return
