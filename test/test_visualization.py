@@ -182,6 +182,7 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
     from processes import Spawned
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import Float64MultiArray
 
     app = 'approach_object_ros_driver'
     context = Context()
@@ -191,6 +192,9 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
     executor.add_node(node)
     received: list[tuple[float, DiagnosticArray]] = []
     node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: received.append((time.monotonic(), m)), 10)
+    commands: list[float] = []  # the application commands the driver once it has heard it
+    node.create_subscription(Float64MultiArray, '/velocity_controller/commands',
+                             lambda m: commands.append(time.monotonic()), 10)
 
     def spin_until(condition, timeout: float) -> bool:
         end = time.monotonic() + timeout
@@ -205,6 +209,10 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
         with (Spawned([sys.executable, '-m', 'itasc_drivers.fake_ros2_control']) as driver,
               Spawned([*BOOTSTRAP, app]) as run):  # no --duration: seeing it run may take seconds of discovery
             assert spin_until(root_running, 120), run.output()
+            # a driver killed before the application heard it would get the start-up grace (5 s), not
+            # the silence timeout: the two processes find each other over DDS in seconds on a busy machine
+            running_at = time.monotonic()
+            assert spin_until(lambda: sum(t > running_at for t in commands) >= 5, 30), run.output()
             assert {s.name for s in received[-1][1].status} == {
                 f'{app}: /{app}', f'{app}: /{app}/itasc',
                 *(f'{app}: /{app}/itasc/{t}' for t in ('ApproachObject', 'AvoidObstacle', 'Retreat'))}
@@ -214,7 +222,8 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
             def safety():
                 return next((t for t, m in received for s in m.status if t > silent_at and s.level == s.ERROR
                              and s.name == f'{app}: /{app}' and 'Driver_panda_silent' in s.message), None)
-            assert spin_until(lambda: safety() is not None, 5.0), [s.message for s in received[-1][1].status]
+            assert spin_until(lambda: safety() is not None, 5.0), \
+                f'{[s.message for s in received[-1][1].status]}\n{run.output()}'
             assert safety() - silent_at < 1.0
             run.send_signal(signal.SIGINT)
             assert run.finish(timeout=120) == 3, run.output()  # ended in Safety
