@@ -23,10 +23,12 @@ import typing
 from collections.abc import Mapping
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError, create_model
+from pydantic import BaseModel, ConfigDict, ValidationError
 from pydantic.fields import FieldInfo
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
+
+from ..kinds import derived_model
 
 __all__ = ['ParameterModel', 'NoParameters', 'declarations', 'flatten', 'nest', 'ros_type', 'problems', 'partial']
 
@@ -101,7 +103,7 @@ def partial(*models: type[BaseModel], name: str, doc: str, exclude: tuple[str, .
         for key, info in model.model_fields.items():
             if key not in exclude:
                 fields[key] = (typing.Optional[info.annotation], FieldInfo.merge_field_infos(info, default=None))
-    return create_model(name, __base__=ParameterModel, __doc__=doc, **fields)
+    return derived_model(name, base=ParameterModel, doc=doc, **fields)
 
 
 def ros_type(value: Any, info: FieldInfo | None = None) -> Parameter.Type:
