@@ -8,6 +8,7 @@ import json
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -42,12 +43,14 @@ def seconds(stamp) -> float:
 def approach(tmp_path_factory):
     """``approach_object`` for 10 s, piped (no terminal), recorded, with ``--summary-json``."""
     out = tmp_path_factory.mktemp('console')
+    began = time.monotonic()
     result = subprocess.run([*BOOTSTRAP, 'approach_object', '--duration', '10', '--record', str(out / 'run.mcap'),
                              '--summary-json', str(out / 'summary.json')], capture_output=True, text=True, timeout=240)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     result.topics = recorded(out / 'run.mcap')
     result.summary = json.loads((out / 'summary.json').read_text())
     result.out = out
+    result.wall = time.monotonic() - began
     return result
 
 
@@ -101,6 +104,14 @@ def test_summary_figures_are_those_of_the_recording(approach):
     assert rate['ticks'] > 500 and 20 < rate['achieved'] <= 110 and 0 < rate['tick_p50'] <= rate['tick_p99']
     assert summary['recording'].endswith('run.mcap') and summary['plot_command'] == f'itasc-plot {summary["recording"]}'
     assert f'(plot it: itasc-plot {summary["recording"]})' in text
+
+
+def test_the_summary_says_how_long_the_bring_up_and_the_whole_start_took(approach):
+    """Running ``up_after`` s after the bring-up began and ``process_up_after`` s after the process
+    started (its imports and the model's validation too), both within the run as seen from here."""
+    up, whole = approach.summary['up_after'], approach.summary['process_up_after']
+    assert 0 < up < whole < approach.wall - 10.0, (up, whole, approach.wall)
+    assert f'Running {up:.2f} s after the bring-up began ({whole:.2f} s after the process started)' in approach.stdout
 
 
 def test_the_inequality_plot_is_the_recorded_distance_against_d_min(approach):

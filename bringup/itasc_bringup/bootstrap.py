@@ -26,6 +26,7 @@ import argparse
 import contextlib
 import faulthandler
 import io
+import os
 import pathlib
 import signal
 import sys
@@ -140,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(sig, lambda signum, _frame: stop_requested.append('signal ' + signal.Signals(signum).name))
 
     started = time.monotonic()
+    age = process_age()  # the interpreter's start, the imports and the model's validation
     zygote = zygote_for(model) if args.deploy == 'per-composite' else None  # before DDS starts threads
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
@@ -263,6 +265,7 @@ def main(argv: list[str] | None = None) -> int:
         _finish(console, args, facts=facts, app=root.name, how=how, exit_code=code, trace=trace,
                 safety=outcome.safety_line() if outcome.went_through_safety else None,
                 running_for=ran_for, up_after=None if running_since is None else running_since - started,
+                process_up_after=None if running_since is None or age is None else running_since - started + age,
                 target_rate=model.rate or 0.0, recording=args.record if recorder is not None else None,
                 warnings=warnings)
         return code
@@ -310,6 +313,17 @@ def _make_console(args: argparse.Namespace, **kwargs):
         return LiveConsole(duration=args.duration, verbose=args.verbose, **kwargs)
     kwargs.pop('target_rate'), kwargs.pop('elapsed')
     return PlainConsole(verbose=args.verbose, **kwargs)
+
+
+def process_age() -> float | None:
+    """Seconds since this process started (Linux: its start time in ``/proc/self/stat``, in clock
+    ticks since boot, against ``CLOCK_BOOTTIME``); None where that cannot be read."""
+    try:
+        stat = pathlib.Path('/proc/self/stat').read_text()
+        ticks = int(stat.rsplit(')', 1)[1].split()[19])  # field 22, starttime; the name may hold spaces
+        return time.clock_gettime(time.CLOCK_BOOTTIME) - ticks / os.sysconf('SC_CLK_TCK')
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
 
 
 def _finish(console, args: argparse.Namespace, *, facts, trace, **summary) -> None:

@@ -26,8 +26,10 @@ def _finite(value: float | None) -> float | None:
 
 def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety: str | None,
                   running_for: float | None, up_after: float | None, target_rate: float, recording: str | None,
-                  trace: str | None, warnings: list[str]) -> dict[str, Any]:
-    """The summary as plain data (what ``--summary-json`` writes)."""
+                  trace: str | None, warnings: list[str], process_up_after: float | None = None) -> dict[str, Any]:
+    """The summary as plain data (what ``--summary-json`` writes). ``up_after``: seconds from the
+    start of the bring-up to Running; ``process_up_after``: from the start of the process (its
+    imports and the model's validation too)."""
     tasks = []
     for name, trace_ in facts.tasks.items():
         entry: dict[str, Any] = {'task': name, 'kind': 'inequality' if trace_.spec.inequality else 'equality',
@@ -46,6 +48,7 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
         'safety': safety,
         'running_for': running_for,
         'up_after': up_after,
+        'process_up_after': process_up_after,
         'paths': {composite: [{'state': state, 'at': at} for state, at in path]
                   for composite, path in facts.paths().items()},  # parents first
         'tasks': tasks,
@@ -90,7 +93,9 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
                  f'tick p50 {_ms(rate["tick_p50"])}, p99 {_ms(rate["tick_p99"])}, solver p50 {_ms(rate["solve_p50"])}'
                  + (f', {rate["dropped"]} ticks dropped (the Timer was too far behind)' if rate['dropped'] else ''))
     if summary['up_after'] is not None:
-        lines.append(f'  {"up":<6} Running {summary["up_after"]:.2f} s after the start')
+        process = summary.get('process_up_after')
+        lines.append(f'  {"up":<6} Running {summary["up_after"]:.2f} s after the bring-up began'
+                     + (f' ({process:.2f} s after the process started)' if process is not None else ''))
     if summary['recording']:
         lines.append(f'  {"record":<6} {summary["recording"]}  (plot it: {summary["plot_command"]})')
     if summary['trace']:
