@@ -88,6 +88,24 @@ def test_an_object_position_with_nan_is_refused(config):
     assert (err.file, err.path) == (str(_program(config)), 'objects[0].xyz[2]'), str(err)
 
 
+def test_an_initial_joint_position_in_degrees_is_refused(config):
+    """-135 (degrees for -2.356 rad) is outside the joint's URDF limits: the simulated robot would
+    start clamped at the limit, not where the model says."""
+    ready = config / 'robots' / 'panda_ready.yaml'
+    edit_yaml(ready, lambda q: q.update(panda_joint4=-135.0))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(ready), 'panda_joint4'), str(err)
+    assert '-135' in err.message and '[-3.0718, -0.0698]' in err.message, str(err)
+
+
+def test_an_initial_joint_position_beyond_the_models_own_limits_is_refused(config):
+    """The robot's ``limits`` narrow the URDF's; the initial position must be within those."""
+    edit_yaml(config / 'robots' / 'panda.yaml', lambda r: r.update(limits={'panda_joint6': {'upper': 1.2}}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(config / 'robots' / 'panda_ready.yaml'), 'panda_joint6'), str(err)
+    assert '1.571' in err.message and ', 1.2]' in err.message, str(err)
+
+
 def test_a_monitor_threshold_of_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['monitors'][0].update(threshold=math.nan))
     err = refused(_app(config))

@@ -24,11 +24,13 @@ from itasc_core.communication.event_names import (COMPOSE_FAILED, COMPOSED, JOIN
 from itasc_core.composition.checks import check_outside_event
 from itasc_core.composition.loader import MAX_BYTES, ModelError, format_loc, source_of
 from itasc_core.itasc.robot import Robot as RobotModel
+from itasc_drivers.drivers import DrivenRobot
 
 from .locations import config_dirs
 from .schema import Application, Program, Task
 
-__all__ = ['check', 'load_robot', 'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED', 'VECTORS',
+__all__ = ['check', 'load_robot', 'joint_limits', 'driven_robot',
+           'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED', 'VECTORS',
            'MAX_URDF_BYTES']
 
 Loc = tuple[Any, ...]
@@ -49,6 +51,29 @@ MAX_URDF_BYTES = 16 * MAX_BYTES
 def load_robot(name: str, urdf: str, base: str) -> RobotModel:
     """The kinematic model of a robot (cached: checks and transform both need it)."""
     return RobotModel(name, urdf, base=base)
+
+
+def joint_limits(robots) -> tuple[list[str], dict[str, list[float]]]:
+    """The joints of ``robots`` in order and their ``lower``/``upper``/``velocity_limit``: the
+    URDF's, overridden by the model's ``limits`` (the Solver plans and the simulated robot moves
+    within the same limits)."""
+    models = [load_robot(r.name, r.urdf, r.base) for r in robots]
+    joints = [j for m in models for j in m.joint_names]
+    limits = {key: [float(v) for m in models for v in getattr(m, key)] for key in ('lower', 'upper', 'velocity_limit')}
+    for robot in robots:
+        for joint, override in robot.limits.items():
+            i = joints.index(joint)
+            for key, value in (('lower', override.lower), ('upper', override.upper),
+                               ('velocity_limit', override.velocity)):
+                if value is not None:
+                    limits[key][i] = float(value)
+    return joints, limits
+
+
+def driven_robot(robot, rate: float) -> DrivenRobot:
+    """What a Driver kind is told of the robot it drives (a model's robot, its URDF resolved)."""
+    joints, limits = joint_limits([robot])
+    return DrivenRobot(name=robot.name, urdf=robot.urdf, base=robot.base, joints=joints, limits=limits, rate=rate)
 
 
 @dataclass
@@ -102,7 +127,7 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
     _composition(where, program, [j for js in joints.values() for j in js])
     _running(where, program, outside=[e.event for e in app.events])
     _solver(where, ('program', 'solver'), program.solver, [j for js in joints.values() for j in js])
-    _drivers(where, app, joints)
+    _drivers(where, resolved, joints)
     _sensors(where, app)
     return resolved
 
@@ -361,7 +386,8 @@ def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> N
             raise where.error(loc + ('robot',), f"robot '{driver.robot}' already has a driver "
                               f'(drivers[{driven[driver.robot]}])')
         driven[driver.robot] = i
-        problem = driver.driver.problem(driver, robot=driver.robot, joints=joints[driver.robot])
+        model = next(r for r in app.program.robots if r.name == driver.robot)
+        problem = driver.driver.problem(driver, robot=driven_robot(model, app.rate))
         if problem is not None:
             raise where.error(loc + problem[0], problem[1])
     for robot in joints:

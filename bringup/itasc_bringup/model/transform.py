@@ -41,9 +41,8 @@ from itasc_core.communication.event_names import (ACTIVATE, DEACTIVATE, OFF, ON,
                                                   named, to_child)
 from itasc_core.composition.model import (CompositeModel, CompositionStepModel, ConnectionModel, EntityModel,
                                           MonitorModel, RunningModel, SafetyModel)
-from itasc_drivers.drivers import DrivenRobot
 
-from .checks import SOLVER_QUANTITIES, load_robot
+from .checks import SOLVER_QUANTITIES, driven_robot, joint_limits
 from .schema import Application, CompositionStep, Driver, Monitor, Program, Solver, Task, TaskSwap
 
 __all__ = ['to_composition', 'KINDS']
@@ -116,10 +115,9 @@ def _placement(item) -> dict[str, list[float]]:
 
 def _driver(driver: Driver, robot, rate: float) -> EntityModel:
     """The Driver's entity: its kind's, with the parameters its kind gives it."""
-    joints, limits = _joint_limits([robot])
     kind = driver.driver
-    driven = DrivenRobot(name=robot.name, urdf=robot.urdf, base=robot.base, joints=joints, limits=limits, rate=rate)
-    return EntityModel(name=f'Driver_{driver.robot}', kind=kind.entity, parameters=kind.parameters(driver, driven))
+    return EntityModel(name=f'Driver_{driver.robot}', kind=kind.entity,
+                       parameters=kind.parameters(driver, driven_robot(robot, rate)))
 
 
 # -- Constraint-based program -----------------------------------------------------------------------
@@ -193,27 +191,10 @@ def _step(app: Application, name: str, step: CompositionStep) -> CompositionStep
 
 
 def _solver(app: Application, solver: Solver) -> EntityModel:
-    joints, limits = _joint_limits(app.program.robots)
+    joints, limits = joint_limits(app.program.robots)
     return EntityModel(name='Solver', kind=KINDS['solver'], parameters={
         **solver.model_dump(exclude={'joint_weights'}), 'joint_names': joints, **limits,
         'joint_weights': [float(solver.joint_weights.get(j, 1.0)) for j in joints], 'period': 1.0 / app.rate})
-
-
-def _joint_limits(robots) -> tuple[list[str], dict[str, list[float]]]:
-    """The joints of ``robots`` in order and their ``lower``/``upper``/``velocity_limit``: the
-    URDF's, overridden by the model's ``limits`` (the Solver plans and the simulated robot moves
-    within the same limits)."""
-    models = [load_robot(r.name, r.urdf, r.base) for r in robots]
-    joints = [j for m in models for j in m.joint_names]
-    limits = {key: [float(v) for m in models for v in getattr(m, key)] for key in ('lower', 'upper', 'velocity_limit')}
-    for robot in robots:
-        for joint, override in robot.limits.items():
-            i = joints.index(joint)
-            for key, value in (('lower', override.lower), ('upper', override.upper),
-                               ('velocity_limit', override.velocity)):
-                if value is not None:
-                    limits[key][i] = float(value)
-    return joints, limits
 
 
 def _initially_inactive(program: Program) -> list[str]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -39,9 +39,9 @@ class Driver:
         raise NotImplementedError
 
     @classmethod
-    def problem(cls, section: Any, *, robot: str, joints: Sequence[str]) -> tuple[tuple[str | int, ...], str] | None:
-        """What in ``section`` does not fit ``robot`` and its ``joints`` (the path in the section, why),
-        or None."""
+    def problem(cls, section: Any, *, robot: DrivenRobot) -> tuple[tuple[str | int, ...], str] | None:
+        """What in ``section`` does not fit ``robot`` (its joints, their limits): the path in the
+        section and why, or None."""
         return None
 
 

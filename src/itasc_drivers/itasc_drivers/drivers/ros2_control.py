@@ -3,7 +3,6 @@ command topic and ``joint_states`` (:class:`itasc_drivers.ros2_control_adapter.R
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any, Literal
 
 from itasc_core.computation.parameters import ParameterModel
@@ -43,11 +42,11 @@ class Ros2Control(Driver):
                 'interface': section.interface, 'horizon': 2.0 / robot.rate}
 
     @classmethod
-    def problem(cls, section: Ros2ControlSection, *, robot: str,
-                joints: Sequence[str]) -> tuple[tuple[str | int, ...], str] | None:
+    def problem(cls, section: Ros2ControlSection, *, robot: DrivenRobot) -> tuple[tuple[str | int, ...], str] | None:
+        joints = robot.joints
         for k, joint in enumerate(section.joints):
             if joint not in joints:
-                return ('joints', k), f"robot '{robot}' has no joint '{joint}'; joints: {list(joints)}"
+                return ('joints', k), f"robot '{robot.name}' has no joint '{joint}'; joints: {joints}"
         missing = [j for j in joints if j not in section.joints]
         if missing or len(set(section.joints)) != len(section.joints):
             return ('joints',), f'list every joint of the robot once (missing: {missing})'

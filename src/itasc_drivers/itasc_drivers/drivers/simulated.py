@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 from itasc_core.computation.parameters import ParameterModel
@@ -16,7 +15,7 @@ __all__ = ['Simulated']
 
 class SimulatedSection(ParameterModel):
     initial: dict[str, float] = Field(default_factory=dict)
-    """Initial joint positions by joint name [rad or m] (omitted: 0)."""
+    """Initial joint positions by joint name [rad or m], each within the joint's limits (omitted: 0)."""
 
 
 class Simulated(Driver):
@@ -31,9 +30,14 @@ class Simulated(Driver):
                 **robot.limits}
 
     @classmethod
-    def problem(cls, section: SimulatedSection, *, robot: str,
-                joints: Sequence[str]) -> tuple[tuple[str | int, ...], str] | None:
-        for joint in section.initial:
+    def problem(cls, section: SimulatedSection, *, robot: DrivenRobot) -> tuple[tuple[str | int, ...], str] | None:
+        joints = robot.joints
+        for joint, value in section.initial.items():
             if joint not in joints:
-                return ('initial', joint), f"robot '{robot}' has no joint '{joint}'; joints: {list(joints)}"
+                return ('initial', joint), f"robot '{robot.name}' has no joint '{joint}'; joints: {joints}"
+            i = joints.index(joint)
+            lower, upper = robot.limits['lower'][i], robot.limits['upper'][i]
+            if not lower <= value <= upper:  # the simulated robot would start clamped, elsewhere than asked
+                return ('initial', joint), (f"{value:g} is outside the limits of '{joint}', [{lower:g}, {upper:g}] "
+                                            '(rad, or m for a prismatic joint)')
         return None
