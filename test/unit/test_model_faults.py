@@ -106,6 +106,29 @@ def test_an_initial_joint_position_beyond_the_models_own_limits_is_refused(confi
     assert '1.571' in err.message and ', 1.2]' in err.message, str(err)
 
 
+@pytest.mark.parametrize('field, task, value', [
+    ('outputs', 'retreat', ['x', 'z', 'x']),  # a Cartesian Task's x twice: its row twice
+    ('joints', 'posture', ['panda_joint1', 'panda_joint2', 'panda_joint1']),
+])
+def test_a_name_given_twice_in_a_tasks_outputs_or_joints_is_refused(config, field, task, value):
+    path = config / 'tasks' / f'{task}.yaml'
+    if task == 'posture':
+        path.write_text(yaml.safe_dump({'name': 'Posture', 'type': 'joint', 'controller': {'kind': 'p', 'kp': 1.0}}))
+        edit_yaml(_program(config), lambda p: p['tasks'].append({'include': '../tasks/posture.yaml'}))
+    edit_yaml(path, lambda t: t.update({field: value}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(path), field), str(err)
+    assert err.message == f"'{value[0]}' given more than once", str(err)
+
+
+def test_an_entity_refuses_outputs_given_twice_as_a_parameter():
+    """The same rule for a running Constraint Output (``ros2 param set .../CO outputs``)."""
+    from itasc_tasks.entities.constraint_output_entity import ConstraintOutputEntity
+    assert ConstraintOutputEntity.parameters_of({'outputs': ['x', 'y']}).outputs == ['x', 'y']
+    with pytest.raises(ValueError, match="'y' given more than once"):
+        ConstraintOutputEntity.parameters_of({'outputs': ['y', 'x', 'y']})
+
+
 def test_a_monitor_threshold_of_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['monitors'][0].update(threshold=math.nan))
     err = refused(_app(config))

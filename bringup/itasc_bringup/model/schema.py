@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from itasc_core.composition.model import OutsideEventModel, RunningStateModel, RunningTransitionModel
 from itasc_core.computation.conditions import CONDITIONS
-from itasc_core.computation.parameters import partial
+from itasc_core.computation.parameters import Names, partial
 from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
@@ -154,8 +154,8 @@ class TaskBase(_Model):
     """The Task's name: its composite, topics (``<program>/<name>/...``) and events (``e_<name>_...``)."""
     type: str
     """The virtual kinematic chain, a registered task type."""
-    outputs: list[str] | None = None
-    """The features constrained (omitted: all of the chain's)."""
+    outputs: Names | None = None
+    """The features constrained, each once (omitted: all of the chain's)."""
     controller: Controller = Field(default_factory=lambda: _controller.validate_python({}))
     """The Constraint Controller."""
     setpoint: Setpoint | None = None

@@ -21,16 +21,17 @@ import math
 import types
 import typing
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
 from pydantic.fields import FieldInfo
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
 from ..kinds import derived_model
 
-__all__ = ['ParameterModel', 'NoParameters', 'declarations', 'flatten', 'nest', 'ros_type', 'problems', 'partial']
+__all__ = ['ParameterModel', 'NoParameters', 'Names', 'declarations', 'flatten', 'nest', 'ros_type', 'problems',
+           'partial']
 
 _INT64 = 2 ** 63 - 1
 
@@ -44,6 +45,18 @@ class ParameterModel(BaseModel):
 
 class NoParameters(ParameterModel):
     """An entity without parameters."""
+
+
+def _distinct(names: list[str]) -> list[str]:
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise ValueError(f'{", ".join(map(repr, twice))} given more than once')
+    return names
+
+
+#: Names each given once: a Task's outputs or a joint chain's joints, where a name twice would be a
+#: constraint row twice.
+Names = Annotated[list[str], AfterValidator(_distinct)]
 
 
 def flatten(values: BaseModel) -> dict[str, Any]:

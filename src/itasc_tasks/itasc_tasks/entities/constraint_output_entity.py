@@ -13,7 +13,7 @@ from pydantic import Field
 
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import Names, ParameterModel
 from itasc_core.itasc.entities.messages import FeaturesSample
 
 from ..constraint_output import ConstraintOutput
@@ -28,7 +28,7 @@ class ConstraintOutputEntity(FunctionalEntity):
     class Parameters(ParameterModel):
         task: str = 'task'
         """The Task it belongs to."""
-        outputs: list[str] = Field(default_factory=list)
+        outputs: Names = Field(default_factory=list)
         """The feature coordinates it selects (none: all)."""
 
     @classmethod

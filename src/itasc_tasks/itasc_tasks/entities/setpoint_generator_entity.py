@@ -36,7 +36,7 @@ from std_msgs.msg import Float64, Float64MultiArray
 from itasc_core.communication.event_names import SAFETY_EVENT
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import Names, ParameterModel
 from itasc_core.communication.qos import DATA_QOS
 from itasc_core.communication.samples import Float64Sample
 from itasc_core.itasc.entities.messages import FeaturesSample, SetpointSample
@@ -70,7 +70,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
         """The Task it belongs to."""
         tick_period: float = Field(default=0.01, gt=0)
         """The program's nominal tick period [s]."""
-        outputs: list[str] = Field(default_factory=list)
+        outputs: Names = Field(default_factory=list)
         """The Task's outputs, as its Constraint Output selects them (none: all features)."""
 
     @classmethod

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import Names, ParameterModel
 from pydantic import Field
 
 from ..vkc import JointVKC
@@ -12,8 +12,8 @@ __all__ = ['Joint']
 
 
 class Joints(ParameterModel):
-    joints: list[str] = Field(min_length=1)
-    """The joints, by name."""
+    joints: Names = Field(min_length=1)
+    """The joints, by name, each once."""
 
 
 class Joint(TaskType):
