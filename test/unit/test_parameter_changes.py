@@ -43,6 +43,8 @@ def spin(node, until, timeout: float = 5.0) -> None:
     ('kind', 'p', 'Trying to set a read-only parameter: kind.'),  # another law is another entity (a swap)
     ('max_output', 0.0, 'max_output: Input should be greater than 0'),
     ('kp', 'fast', "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'"),
+    ('kp', float('inf'), 'kp: Input should be a finite number'),  # rclpy's range [0, inf] lets it through
+    ('task', 'U', 'Trying to set a read-only parameter: task.'),  # its ports' semantics are made from it
 ])
 def test_a_value_the_model_refuses_is_refused_recorded_and_changes_nothing(controller, name, value, reason):
     cc, heard = controller
@@ -52,6 +54,25 @@ def test_a_value_the_model_refuses_is_refused_recorded_and_changes_nothing(contr
     spin(cc, lambda: heard)
     assert [(e.name, e.source, e.detail) for e in heard] == [
         ('e_CC_parameter_refused', '/changes/T/CC', f'{name} = {value!r}: {reason} (set from outside)')]
+
+
+def test_a_tasks_structure_is_read_only_on_its_entities():
+    """What makes a Task (its outputs, its chain's frames or joints) is not a gain: a Constraint
+    Output given other outputs than its Setpoint Generator's would put the Task in Safety at the
+    next tick. Another structure is another Task (a composition step)."""
+    from itasc_tasks.entities import ConstraintOutputEntity, VKCEntity
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    co = ConstraintOutputEntity('CO', composite=TASK, parameters={'task': 'T', 'outputs': ['x', 'y']})
+    vkc = VKCEntity('VKC', composite=TASK, parameters={'task': 'T', 'type': 'cartesian', 'o1': 'a', 'o2': 'b/c'})
+    try:
+        for entity, name, value in ((co, 'outputs', ['x']), (vkc, 'o1', 'd'), (vkc, 'task', 'U')):
+            (result,) = entity.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (False, f'Trying to set a read-only parameter: {name}.')
+        assert co.params.outputs == ['x', 'y'] and vkc.params.o1 == 'a'
+    finally:
+        co.destroy_node()
+        vkc.destroy_node()
+        rclpy.try_shutdown()
 
 
 def test_a_change_is_taken_at_once_and_raised_with_old_and_new_value_and_who(controller):

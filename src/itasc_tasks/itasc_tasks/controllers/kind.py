@@ -16,8 +16,8 @@ __all__ = ['ConstraintController', 'CONTROLLERS', 'Gains', 'limits', 'saturate']
 class Gains(ParameterModel):
     """What every control law has: a proportional gain and a saturation."""
 
-    kp: float = Field(default=1.0, ge=0)
-    """Proportional gain [1/s]: desired output velocity per unit of error."""
+    kp: float = Field(default=1.0, ge=0, allow_inf_nan=False)
+    """Proportional gain [1/s]: desired output velocity per unit of error (finite)."""
     max_output: float = Field(default=math.inf, gt=0)
     """Saturation of the desired output velocity [unit of the output per s]; ``.inf``: none."""
 

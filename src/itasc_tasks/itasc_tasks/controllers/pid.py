@@ -15,10 +15,10 @@ __all__ = ['PIDController', 'PIDGains']
 class PIDGains(Gains):
     """A PID's gains."""
 
-    ki: float = Field(default=0.0, ge=0)
-    """Integral gain [1/s²]."""
-    kd: float = Field(default=0.0, ge=0)
-    """Derivative gain (dimensionless)."""
+    ki: float = Field(default=0.0, ge=0, allow_inf_nan=False)
+    """Integral gain [1/s²] (finite)."""
+    kd: float = Field(default=0.0, ge=0, allow_inf_nan=False)
+    """Derivative gain (dimensionless, finite)."""
     max_integral: float = Field(default=math.inf, gt=0)
     """Bound of the integral of the error (anti-windup) [unit of the output · s]; ``.inf``: none."""
 

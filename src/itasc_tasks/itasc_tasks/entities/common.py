@@ -9,11 +9,18 @@ program-wide joint velocities.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from itasc_msgs.msg import Control, Features, Setpoint
+from pydantic import Field
 
 from itasc_core.communication.ports import PortSpec
 
-__all__ = ['task_port', 'Ticks']
+__all__ = ['task_port', 'Ticks', 'TaskName']
+
+#: The parameter naming the Task an entity belongs to: read-only, since its ports' semantics and
+#: topics are made from it (another Task is another composite).
+TaskName = Annotated[str, Field(frozen=True)]
 
 #: The message of each kind of data a Task's entities exchange.
 _MESSAGES = {'Features': Features, 'Output': Features, 'Setpoint': Setpoint, 'Control': Control}

@@ -31,7 +31,7 @@ from itasc_core.kinds import with_kind
 
 from ..constraint_controller import equality_control, inequality_control
 from ..controllers import CONTROLLERS, ConstraintController
-from .common import Ticks, task_port
+from .common import TaskName, Ticks, task_port
 
 __all__ = ['ConstraintControllerEntity', 'ControllerBase']
 
@@ -48,7 +48,7 @@ class ConstraintControllerEntity(FunctionalEntity):
     """Desired output velocity (or its bounds) from the output and its setpoint."""
 
     class Parameters(ControllerBase):
-        task: str = 'task'
+        task: TaskName = 'task'
         """The Task it belongs to."""
         tick_period: float = Field(default=0.01, gt=0)
         """The program's nominal tick period [s]."""

@@ -17,7 +17,7 @@ from itasc_core.computation.parameters import Names, ParameterModel
 from itasc_core.itasc.entities.messages import FeaturesSample
 
 from ..constraint_output import ConstraintOutput
-from .common import task_port
+from .common import TaskName, task_port
 
 __all__ = ['ConstraintOutputEntity']
 
@@ -26,9 +26,9 @@ class ConstraintOutputEntity(FunctionalEntity):
     """Selects the Task's outputs y among the feature coordinates."""
 
     class Parameters(ParameterModel):
-        task: str = 'task'
+        task: TaskName = 'task'
         """The Task it belongs to."""
-        outputs: Names = Field(default_factory=list)
+        outputs: Names = Field(default_factory=list, frozen=True)
         """The feature coordinates it selects (none: all)."""
 
     @classmethod

@@ -21,7 +21,7 @@ from itasc_core.computation.parameters import ParameterModel
 from itasc_core.itasc.entities.messages import RowsSample, TaskStateSample
 from itasc_core.itasc.entities.messages import ROWS_SEMANTICS
 
-from .common import task_port
+from .common import TaskName, task_port
 
 __all__ = ['ConstraintRowsEntity']
 
@@ -30,20 +30,20 @@ class ConstraintRowsEntity(FunctionalEntity):
     """The Task's constraint rows on the program-wide joint velocities, and its state."""
 
     class Parameters(ParameterModel):
-        task: str = 'task'
+        task: TaskName = 'task'
         """The Task it belongs to."""
         priority: int = Field(default=0, ge=0)
         """Priority level of the Task's rows, 0 highest."""
         weights: list[float] = Field(default_factory=lambda: [1.0], min_length=1)
-        """Weight of each row in its level: one value, or one per output (> 0)."""
+        """Weight of each row in its level: one value, or one per output (finite, > 0)."""
         inequality: bool = False
         """Whether the rows are bounds (an inequality Task)."""
 
         @field_validator('weights')
         @classmethod
         def _positive(cls, value: list[float]) -> list[float]:
-            if not all(w > 0 for w in value):
-                raise ValueError('weights must be > 0')
+            if not all(0 < w < math.inf for w in value):
+                raise ValueError('weights must be finite and > 0')
             return value
 
     @classmethod

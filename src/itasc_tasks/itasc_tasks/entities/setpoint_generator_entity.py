@@ -45,7 +45,7 @@ from itasc_core.kinds import with_kind
 from ..constraint_output import ConstraintOutput, Selection
 from ..setpoint_generator import OutputSetpoint, PointToPoint, TopicSetpoint, start_value
 from ..setpoints import SETPOINTS
-from .common import Ticks, task_port
+from .common import TaskName, Ticks, task_port
 
 __all__ = ['SetpointGeneratorEntity', 'SetpointBase']
 
@@ -66,11 +66,11 @@ class SetpointGeneratorEntity(FunctionalEntity):
     class Parameters(SetpointBase):
         kind: str = 'hold'
         """How the setpoint moves, a registered setpoint generator (its fields follow)."""
-        task: str = 'task'
+        task: TaskName = 'task'
         """The Task it belongs to."""
         tick_period: float = Field(default=0.01, gt=0)
         """The program's nominal tick period [s]."""
-        outputs: Names = Field(default_factory=list)
+        outputs: Names = Field(default_factory=list, frozen=True)
         """The Task's outputs, as its Constraint Output selects them (none: all features)."""
 
     @classmethod

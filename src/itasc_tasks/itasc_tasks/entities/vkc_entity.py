@@ -27,7 +27,7 @@ from itasc_core.itasc.entities.scene_entity import PROGRAM_JOINTS, relation_sema
 from itasc_core.kinds import with_kind
 
 from ..task_types import TASK_TYPES
-from .common import task_port
+from .common import TaskName, task_port
 
 __all__ = ['VKCEntity']
 
@@ -36,7 +36,7 @@ class VKCEntity(FunctionalEntity):
     """Feature coordinates chi_f between two object frames (or of joints) and their Jacobian."""
 
     class Parameters(ParameterModel):
-        task: str = 'task'
+        task: TaskName = 'task'
         """The Task it belongs to."""
         type: str = 'cartesian'
         """The chain: a registered task type (its parameters follow)."""

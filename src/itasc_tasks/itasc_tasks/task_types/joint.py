@@ -12,7 +12,7 @@ __all__ = ['Joint']
 
 
 class Joints(ParameterModel):
-    joints: Names = Field(min_length=1)
+    joints: Names = Field(min_length=1, frozen=True)
     """The joints, by name, each once."""
 
 

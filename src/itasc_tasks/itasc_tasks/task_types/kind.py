@@ -20,9 +20,9 @@ Chain: TypeAlias = VirtualKinematicChain | JointChain
 class FramePair(ParameterModel):
     """A chain between two object frames."""
 
-    o1: str = Field(min_length=1)
+    o1: str = Field(min_length=1, frozen=True)
     """First object frame: ``<robot>/<frame>``, ``<object>/<frame>``, ``<object>`` or ``world``."""
-    o2: str = Field(min_length=1)
+    o2: str = Field(min_length=1, frozen=True)
     """Second object frame, as o1."""
 
 
