@@ -128,20 +128,29 @@ class FunctionalEntity(Entity):
                              detail=f'{names}: {result.reason} ({self.cause})')
 
     def _check_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """Checked by the parameter model, then taken into use (:meth:`configure`): what only the
+        entity can tell (a frame its Scene does not have) refuses the change too, and the entity
+        goes on with the values it had. rclpy has checked type, range and read-only before, and
+        stores the values only after this says yes."""
         proposed = flatten(self.params) | {p.name: p.value for p in parameters}
         try:
-            self.parameters_of(nest(proposed))
+            values = self.parameters_of(nest(proposed))
         except (ValidationError, UnknownKind) as err:
             return SetParametersResult(successful=False, reason=problems(err))
+        try:
+            self.configure(values)
+        except Exception as err:  # noqa: BLE001 - any reason of the entity's refuses the change
+            self.configure(self.params)
+            return SetParametersResult(successful=False, reason=f'{type(err).__name__}: {err}')
+        self._configured = values
         return SetParametersResult(successful=True)
 
     def _parameters_set(self, parameters: list[Parameter]) -> None:
-        """Taken into use at once (in an executor callback: between two ticks), and raised as
-        ``e_<entity>_parameter_set`` per parameter that changed (detail ``kp: 1.0 -> 2.0 (<cause>)``),
-        so that the recording holds every change."""
+        """Taken into use at once (in an executor callback: between two ticks, by
+        :meth:`_check_parameters`), and raised as ``e_<entity>_parameter_set`` per parameter that
+        changed (detail ``kp: 1.0 -> 2.0 (<cause>)``), so that the recording holds every change."""
         before = flatten(self.params)
-        self.params = self.parameters_of(nest(before | {p.name: p.value for p in parameters}))
-        self.configure(self.params)
+        self.params = self._configured
         after = flatten(self.params)
         for name in [p.name for p in parameters if before.get(p.name) != after.get(p.name)]:
             self.raise_event(event(self.entity_name, PARAMETER_SET),
