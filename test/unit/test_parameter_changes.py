@@ -6,6 +6,7 @@ configuration of the model. Real rclpy nodes, no mocks."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import pytest
@@ -104,6 +105,25 @@ def test_a_change_the_entity_cannot_take_is_refused_and_the_old_one_stays():
     finally:
         scene.destroy_node()
         rclpy.try_shutdown()
+
+
+@pytest.mark.parametrize('entity, values', [
+    ('Monitor', {'condition': 'above', 'threshold': math.nan, 'event': 'e_x'}),  # it would never fire
+    ('ConstraintControllerEntity', {'lower': [0.0, math.nan]}),
+    ('SetpointGeneratorEntity', {'kind': 'fixed', 'value': [math.nan]}),
+    ('SolverEntity', {'joint_names': ['a'], 'lower': [math.nan], 'upper': [1.0], 'velocity_limit': [1.0]}),
+    ('SceneEntity', {'objects': {'target': {'xyz': [0.5, math.nan, 0.2]}}}),
+])
+def test_nan_is_never_a_parameter_value(entity, values):
+    """rclpy refuses a NaN only where a parameter has a range; the parameter models refuse it
+    everywhere, also in lists and nested sections (the rule of the model file)."""
+    from itasc_core.computation.monitor import Monitor
+    from itasc_core.itasc.entities import SceneEntity, SolverEntity
+    from itasc_tasks.entities import ConstraintControllerEntity, SetpointGeneratorEntity
+    kinds = {k.__name__: k for k in (Monitor, ConstraintControllerEntity, SetpointGeneratorEntity, SolverEntity,
+                                     SceneEntity)}
+    with pytest.raises(ValueError, match='NaN is not a value'):
+        kinds[entity].parameters_of(values)
 
 
 def test_a_change_is_taken_at_once_and_raised_with_old_and_new_value_and_who(controller):

@@ -23,7 +23,7 @@ import typing
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, field_validator
 from pydantic.fields import FieldInfo
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
@@ -37,10 +37,28 @@ _INT64 = 2 ** 63 - 1
 
 
 class ParameterModel(BaseModel):
-    """Base of every entity's parameter model: unknown fields refused, field docstrings kept as
-    descriptions."""
+    """Base of every entity's parameter model: unknown fields refused, no NaN anywhere (rclpy's
+    ranges let a NaN through where a parameter has none: a threshold, a list), field docstrings
+    kept as descriptions."""
 
     model_config = ConfigDict(extra='forbid', use_attribute_docstrings=True)
+
+    @field_validator('*')
+    @classmethod
+    def _no_nan(cls, value: Any) -> Any:
+        if _has_nan(value):
+            raise ValueError(f'NaN is not a value (got {value})')
+        return value
+
+
+def _has_nan(value: Any) -> bool:
+    if isinstance(value, float):
+        return math.isnan(value)
+    if isinstance(value, (list, tuple)):
+        return any(_has_nan(v) for v in value)
+    if isinstance(value, dict):
+        return any(_has_nan(v) for v in value.values())
+    return False  # a nested model checked its own fields
 
 
 class NoParameters(ParameterModel):
