@@ -95,3 +95,38 @@ def test_the_adapter_drives_a_separate_ros2_control_driver(ros, interface):
     finally:
         executor.shutdown()
         adapter.destroy_node()
+
+
+def test_a_driver_that_names_the_joints_otherwise_is_reported(ros):
+    """A driver whose joint states lack the adapter's joints (its own names for them) does not
+    measure the robot: the adapter says which joints are missing and which the driver has, once,
+    instead of only falling silent."""
+    from itasc_core.communication.events import EventListener
+    from itasc_core.entity import CompositeContext
+    from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
+
+    composite = CompositeContext(name='test', namespace='/named')
+    driver = [sys.executable, '-m', 'itasc_drivers.fake_ros2_control', '--controller', 'arm_controller',
+              '--joints', 'fr3_a,fr3_b,fr3_c', '--initial', '0,0,0', '--joint-states', '/named/joint_states',
+              '--rate', '200']
+    adapter = Ros2ControlAdapter('Driver_arm', composite=composite, parameters={
+        'robot': 'arm', 'joints': JOINTS, 'joint_states_topic': '/named/joint_states',
+        'command_topic': '/arm_controller/commands'})
+    heard: list = []
+    EventListener(adapter, topics=[composite.events_topic], immediate=True, on_priority=heard.append)
+    executor = SingleThreadedExecutor()
+    executor.add_node(adapter)
+    try:
+        with Spawned(driver) as process:
+            deadline = time.monotonic() + 30.0
+            while not heard:
+                assert time.monotonic() < deadline, 'nothing said of the missing joints\n' + process.output()
+                _run(executor, adapter, 0.05)
+            _run(executor, adapter, 0.3)  # more joint states, said once
+            assert [(e.name, e.detail) for e in heard] == [
+                ('e_arm_joints_missing', 'arm_a, arm_b, arm_c not in /named/joint_states (it has: fr3_c, fr3_b, fr3_a, '
+                                         'panda_finger_joint1)')], heard
+            assert adapter.measured is None and adapter.outputs['joint_state'].last is None
+    finally:
+        executor.shutdown()
+        adapter.destroy_node()

@@ -14,6 +14,11 @@ JointTrajectoryController).
     the measured positions;
   - ``trajectory``: ``trajectory_msgs/JointTrajectory``, one point ``horizon`` seconds ahead.
 
+A joint state that lacks one of its ``joints`` (a driver that names them otherwise, a position
+list shorter than the names) is not a measurement: the first one raises
+``e_<robot>_joints_missing`` naming the joints missing and those the driver has (the watchdog
+then finds the driver silent).
+
 On disengage and in Safety it commands zero velocity (velocity) or holds the measured position.
 In Safety it keeps reporting what the driver measures (as a simulated robot does), so that the
 watchdog Monitors can tell whether a silent driver came back before a recovery.
@@ -32,6 +37,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from itasc_core.communication.event_names import JOINTS_MISSING, event
 from itasc_core.communication.ports import PortSpec
 from itasc_core.communication.samples import JointSample
 from itasc_core.computation.functional_entity import FunctionalEntity
@@ -68,6 +74,8 @@ class Ros2ControlAdapter(FunctionalEntity):
 
     def configure(self, params: Parameters) -> None:
         self.joints = list(params.joints)
+        self.robot, self.joint_states_topic = params.robot, params.joint_states_topic
+        self._missing_reported = False
         self.interface = params.interface
         self.horizon = params.horizon
         if self._state_sub is not None and self._publisher is not None:  # re-configured: new topics
@@ -86,6 +94,11 @@ class Ros2ControlAdapter(FunctionalEntity):
         if all(j in by_name for j in self.joints):
             self.measured = np.array([by_name[j] for j in self.joints], dtype=float)
             self._fresh = True
+        elif not self._missing_reported:
+            self._missing_reported = True
+            missing = ', '.join(j for j in self.joints if j not in by_name)
+            self.raise_event(event(self.robot, JOINTS_MISSING),
+                             detail=f'{missing} not in {self.joint_states_topic} (it has: {", ".join(by_name)})')
 
     def update(self, t: float) -> None:
         dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
