@@ -119,8 +119,8 @@ def derived_model(name: str, *, base: type[BaseModel] | tuple[type[BaseModel], .
                   **fields: Any) -> type[BaseModel]:
     """pydantic's ``create_model`` for a model made of documented ones (``base`` and ``fields``,
     whose descriptions are given): pydantic does not look for the new class's attribute docstrings,
-    which it would search for through every frame of the caller's stack (about 10 ms a model, most
-    of an application's start-up time)."""
+    which it would search for through every frame of the caller's stack (about 8 ms a model on a
+    2-core VM; the application model's 25 took 0.2 s of every start)."""
     return create_model(name, __base__=base, __doc__=doc, __cls_kwargs__={'use_attribute_docstrings': False},
                         **fields)
 
