@@ -77,31 +77,51 @@ def test_a_tasks_structure_is_read_only_on_its_entities():
 
 
 def test_a_change_the_entity_cannot_take_is_refused_and_the_old_one_stays():
-    """The parameter model cannot know every rule: a Scene knows its frames only once built. A
-    relation to a frame it does not have is refused with the Scene's reason, and the Scene keeps
-    computing with what it had; before, the exception left the parameter callback and ended the
-    process. A change it can take moves the object."""
+    """The parameter model cannot know every rule: a Setpoint Generator learns that its topic is not
+    a ROS topic name only when it subscribes. The change is refused with that reason, and the
+    entity keeps reading the topic it had; before, the exception left rclpy's post-set callback and
+    ended the process (as setting a running Scene's relation to an unknown frame did)."""
+    from itasc_tasks.entities import SetpointGeneratorEntity
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    spg = SetpointGeneratorEntity('SPG', composite=TASK, parameters={
+        'task': 'T', 'kind': 'topic', 'topic': '/changes/setpoint', 'outputs': ['x']})
+    heard: list = []
+    EventListener(spg, topics=[TASK.events_topic], immediate=True, on_priority=heard.append)
+    try:
+        (result,) = spg.set_parameters([Parameter('topic', value='not a topic!')])
+        assert not result.successful and 'InvalidTopicNameException' in result.reason, result.reason
+        assert spg.get_parameter('topic').value == '/changes/setpoint'
+        assert spg._subscription.topic_name == '/changes/setpoint'
+        (result,) = spg.set_parameters([Parameter('topic', value='/changes/other')])
+        assert result.successful and spg._subscription.topic_name == '/changes/other', result.reason
+        spin(spg, lambda: len(heard) >= 2)
+        assert [e.name for e in heard] == ['e_SPG_parameter_refused', 'e_SPG_parameter_set'], heard
+    finally:
+        spg.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_the_scenes_structure_is_read_only_and_placements_are_finite():
+    """A running Scene's relations, URDFs and sensed objects are what the Tasks and the Solver were
+    built for; an object may move, but not to infinity."""
     from itasc_bringup.apps import load_composition
     from itasc_core.itasc.entities import SceneEntity
     program = load_composition('approach_object').entity('itasc')
     parameters = next(e for e in program.entities if e.name == 'Scene').parameters
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    context = CompositeContext(name='itasc', namespace='/changes/itasc')
-    scene = SceneEntity('Scene', composite=context, parameters=parameters)
-    heard: list = []
-    EventListener(scene, topics=[context.events_topic], immediate=True, on_priority=heard.append)
+    scene = SceneEntity('Scene', composite=CompositeContext(name='itasc', namespace='/changes/itasc'),
+                        parameters=parameters)
     try:
-        (result,) = scene.set_parameters([Parameter('relations.ApproachObject.o1', value='nope')])
-        assert not result.successful and "Scene has no robot or object 'nope'" in result.reason, result.reason
-        assert scene.params.relations['ApproachObject'].o1 == 'target/grasp'
-        assert scene.get_parameter('relations.ApproachObject.o1').value == 'target/grasp'
-        assert ('ApproachObject', 'target/grasp', 'panda/tcp') in scene.relations
+        for name, value in (('relations.ApproachObject.o1', 'nope'), ('robots.panda.urdf', '/elsewhere.urdf'),
+                            ('objects.target.sensed', True)):
+            (result,) = scene.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (False, f'Trying to set a read-only parameter: {name}.')
+        (result,) = scene.set_parameters([Parameter('objects.target.xyz', value=[0.5, math.inf, 0.25])])
+        assert not result.successful and 'finite' in result.reason, result.reason
         (result,) = scene.set_parameters([Parameter('objects.target.xyz', value=[0.5, 0.1, 0.25])])
         assert result.successful, result.reason
         scene.scene.update(0.0)
         assert list(scene.scene.pose('target').translation) == pytest.approx([0.5, 0.1, 0.25])
-        spin(scene, lambda: len(heard) >= 2)
-        assert [e.name for e in heard] == ['e_Scene_parameter_refused', 'e_Scene_parameter_set'], heard
     finally:
         scene.destroy_node()
         rclpy.try_shutdown()
@@ -122,7 +142,7 @@ def test_nan_is_never_a_parameter_value(entity, values):
     from itasc_tasks.entities import ConstraintControllerEntity, SetpointGeneratorEntity
     kinds = {k.__name__: k for k in (Monitor, ConstraintControllerEntity, SetpointGeneratorEntity, SolverEntity,
                                      SceneEntity)}
-    with pytest.raises(ValueError, match='NaN is not a value'):
+    with pytest.raises(ValueError, match='NaN is not a value|finite number'):
         kinds[entity].parameters_of(values)
 
 

@@ -101,12 +101,13 @@ class SetpointGeneratorEntity(FunctionalEntity):
 
     def _subscribe(self, topic: str) -> None:
         current = getattr(self, '_subscription', None)
-        if current is not None and current.topic_name != topic:
+        if current is not None and current.topic_name == topic:
+            return
+        # the new one first: a topic name rclpy refuses leaves the old subscription as it was
+        new = self.create_subscription(Float64MultiArray, topic, self._on_value, DATA_QOS) if topic else None
+        if current is not None:
             self.destroy_subscription(current)
-            current = None
-        if topic and current is None:
-            current = self.create_subscription(Float64MultiArray, topic, self._on_value, DATA_QOS)
-        self._subscription = current
+        self._subscription = new
 
     def _on_value(self, msg: Float64MultiArray) -> None:
         self.generator.push(np.asarray(msg.data, dtype=float))  # type: ignore[attr-defined]  # a topic's kind

@@ -17,7 +17,9 @@ nothing is written that tick; any other quaternion is normalised.
 
 Its parameters are typed (:class:`SceneEntity.Parameters`): robots, objects and relations by name,
 declared as ROS parameters ``robots.<robot>.urdf``, ``objects.<object>.frames.<frame>.xyz``,
-``relations.<Task>.o1``, ...
+``relations.<Task>.o1``, ... What the program's structure rests on is read-only (a robot's URDF,
+base and frame links, whether an object is sensed, the relations: the Tasks and the Solver were
+built for them); placements are not (an object moved, a robot's base placed anew).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import pinocchio as pin
 from geometry_msgs.msg import PoseStamped
 from itasc_msgs.msg import Features
 from sensor_msgs.msg import JointState
-from pydantic import Field
+from pydantic import Field, FiniteFloat
 
 from ...communication.event_names import SAFETY_EVENT
 from ...communication.ports import PortSpec
@@ -56,7 +58,7 @@ def object_pose(obj: str) -> str:
     return f'Pose({obj}|world)@world'
 
 
-Vec3 = tuple[float, float, float]
+Vec3 = tuple[FiniteFloat, FiniteFloat, FiniteFloat]
 
 
 class Placement(ParameterModel):
@@ -80,16 +82,16 @@ class ObjectMotion(ParameterModel):
 class LinkFrame(Placement):
     """An object frame on a robot link, offset from the link."""
 
-    link: str = Field(min_length=1)
+    link: str = Field(min_length=1, frozen=True)
     """The URDF link it is fixed to."""
 
 
 class SceneRobot(Placement):
     """A robot of the Scene, placed in the world."""
 
-    urdf: str = Field(min_length=1)
+    urdf: str = Field(min_length=1, frozen=True)
     """Its URDF file (absolute path)."""
-    base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+    base: Literal['fixed', 'planar', 'free_flyer'] = Field(default='fixed', frozen=True)
     """Its base: fixed, or a mobile base's joints."""
     frames: dict[str, LinkFrame] = Field(default_factory=dict)
     """Its object frames by name."""
@@ -100,7 +102,7 @@ class SceneObject(Placement):
 
     frames: dict[str, Placement] = Field(default_factory=dict)
     """Its frames by name, relative to it."""
-    sensed: bool = False
+    sensed: bool = Field(default=False, frozen=True)
     """Whether a Sensor measures its pose (input ``pose_<object>``)."""
     motion: ObjectMotion | None = None
     """A known motion about the placement."""
@@ -109,9 +111,9 @@ class SceneObject(Placement):
 class Relation(ParameterModel):
     """A pair of object frames a Task is defined between."""
 
-    o1: str = Field(min_length=1)
+    o1: str = Field(min_length=1, frozen=True)
     """The first frame (``robot/frame``, ``object/frame``, ``object`` or ``world``)."""
-    o2: str = Field(min_length=1)
+    o2: str = Field(min_length=1, frozen=True)
     """The second frame."""
 
 
