@@ -101,6 +101,41 @@ def test_a_change_the_entity_cannot_take_is_refused_and_the_old_one_stays():
         rclpy.try_shutdown()
 
 
+def test_an_entity_that_cannot_go_back_after_a_refused_change_goes_to_safety():
+    """If an entity fails to take back its old parameters too, it is not fit to run: Safety, not
+    an exception out of rclpy's parameter callback (which would end the process)."""
+    from itasc_core.computation.functional_entity import FunctionalEntity
+    from itasc_core.computation.parameters import ParameterModel
+
+    class Fragile(FunctionalEntity):
+        class Parameters(ParameterModel):
+            gain: float = 1.0
+
+        broken = False
+
+        def configure(self, params) -> None:
+            if params.gain > 10.0:
+                self.broken = True  # e.g. a resource it let go of and cannot get back
+            if self.broken:
+                raise RuntimeError('out of order')
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    entity = Fragile('Fragile', composite=TASK, parameters={'gain': 1.0})
+    heard: list = []
+    EventListener(entity, topics=[TASK.events_topic], immediate=True, on_priority=heard.append)
+    try:
+        (result,) = entity.set_parameters([Parameter('gain', value=20.0)])
+        assert (result.successful, result.reason) == (False, 'RuntimeError: out of order')
+        spin(entity, lambda: len(heard) >= 2)
+        assert [(e.name, e.detail) for e in heard] == [
+            ('e_emergency', 'Fragile could not take back its parameters after refusing a change (RuntimeError: '
+                            'out of order): RuntimeError: out of order'),
+            ('e_Fragile_parameter_refused', 'gain = 20.0: RuntimeError: out of order (set from outside)')], heard
+    finally:
+        entity.destroy_node()
+        rclpy.try_shutdown()
+
+
 def test_the_scenes_structure_is_read_only_and_placements_are_finite():
     """A running Scene's relations, URDFs and sensed objects are what the Tasks and the Solver were
     built for; an object may move, but not to infinity."""

@@ -18,7 +18,7 @@ from pydantic import ValidationError
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
-from ..communication.event_names import PARAMETER_REFUSED, PARAMETER_SET, event
+from ..communication.event_names import PARAMETER_REFUSED, PARAMETER_SET, SAFETY_EVENT, event
 from ..communication.ports import InputPort, OutputPort, PortSpec
 from ..entity import CompositeContext, Entity
 from ..kinds import UnknownKind
@@ -140,8 +140,13 @@ class FunctionalEntity(Entity):
         try:
             self.configure(values)
         except Exception as err:  # noqa: BLE001 - any reason of the entity's refuses the change
-            self.configure(self.params)
-            return SetParametersResult(successful=False, reason=f'{type(err).__name__}: {err}')
+            reason = f'{type(err).__name__}: {err}'
+            try:
+                self.configure(self.params)
+            except Exception as again:  # noqa: BLE001 - an entity that cannot go back is not fit to run
+                self.raise_event(SAFETY_EVENT, priority=True, detail=f'{self.entity_name} could not take back its '
+                                 f'parameters after refusing a change ({reason}): {type(again).__name__}: {again}')
+            return SetParametersResult(successful=False, reason=reason)
         self._configured = values
         return SetParametersResult(successful=True)
 
