@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
@@ -73,6 +74,23 @@ def test_a_tasks_structure_is_read_only_on_its_entities():
     finally:
         co.destroy_node()
         vkc.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_an_empty_read_only_list_is_declared_with_its_value_and_stays_read_only():
+    """A Constraint Output of every feature (outputs: []) shows outputs = [] to ros2 param, as any
+    other parameter; before, a read-only empty list was left uninitialized (rclpy refused its own
+    declaration's value), so ros2 param get failed on it."""
+    from itasc_tasks.entities import ConstraintOutputEntity
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    co = ConstraintOutputEntity('CO', composite=TASK, parameters={'task': 'T'})
+    try:
+        assert (co.get_parameter('outputs').type_, co.get_parameter('outputs').value) == (
+            Parameter.Type.STRING_ARRAY, [])
+        (result,) = co.set_parameters([Parameter('outputs', value=['x'])])
+        assert (result.successful, result.reason) == (False, 'Trying to set a read-only parameter: outputs.')
+    finally:
+        co.destroy_node()
         rclpy.try_shutdown()
 
 
@@ -159,6 +177,120 @@ def test_the_scenes_structure_is_read_only_and_placements_are_finite():
         assert list(scene.scene.pose('target').translation) == pytest.approx([0.5, 0.1, 0.25])
     finally:
         scene.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _approach_object_parameters() -> dict[str, dict]:
+    """The parameters of approach_object's entities, by entity name (Driver_panda, Robot_panda, Solver...)."""
+    from itasc_bringup.apps import load_composition
+    found: dict[str, dict] = {}
+
+    def walk(composite) -> None:
+        for entity in composite.entities:
+            if hasattr(entity, 'entities'):
+                walk(entity)
+            else:
+                found.setdefault(entity.name, entity.parameters)
+    walk(load_composition('approach_object'))
+    return found
+
+
+def test_what_a_robot_is_is_read_only_on_the_driver_the_robot_and_the_solver():
+    """A driver's robot, URDF, base and start, the robot entity's URDF, the Solver's joints and the
+    ros2_control adapter's joints are what the others were built for: before, the simulated driver
+    took such changes and silently did nothing with them."""
+    from itasc_core.itasc.entities import RobotEntity, SolverEntity
+    from itasc_drivers.pose_sensor import PoseSensor
+    from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
+    from itasc_drivers.simulated_robot import SimulatedRobot
+    parameters = _approach_object_parameters()
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    context = CompositeContext(name='itasc', namespace='/changes/itasc')
+    entities = [SimulatedRobot('Driver_panda', composite=context, parameters=parameters['Driver_panda']),
+                RobotEntity('Robot_panda', composite=context, parameters=parameters['Robot_panda']),
+                SolverEntity('Solver', composite=context, parameters=parameters['Solver']),
+                Ros2ControlAdapter('Adapter', composite=context, parameters={'robot': 'arm', 'joints': ['a', 'b']}),
+                PoseSensor('Sensor', composite=context, parameters={'object': 'target'})]
+    driver, robot, solver, adapter, sensor = entities
+    try:
+        for entity, name, value in ((driver, 'robot', 'other'), (driver, 'urdf', '/elsewhere.urdf'),
+                                    (driver, 'base', 'planar'), (driver, 'initial.panda_joint4', -1.0),
+                                    (robot, 'urdf', '/elsewhere.urdf'), (solver, 'joint_names', ['a']),
+                                    (adapter, 'joints', ['b', 'a']), (adapter, 'robot', 'other'),
+                                    (sensor, 'object', 'other')):
+            (result,) = entity.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (False, f'Trying to set a read-only parameter: {name}.')
+    finally:
+        for entity in entities:
+            entity.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_a_simulated_drivers_limits_take_effect_while_it_runs():
+    """ros2 param set of a simulated driver's velocity_limit slows the simulated robot at once;
+    none again gives the URDF's; a list of the wrong length is refused with the reason. Before,
+    every change after the start was accepted and ignored."""
+    from itasc_core.communication.samples import JointSample
+    from itasc_drivers.simulated_robot import SimulatedRobot
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    driver = SimulatedRobot('Driver_panda', composite=CompositeContext(name='itasc', namespace='/changes/itasc'),
+                            parameters=_approach_object_parameters()['Driver_panda'])
+    try:
+        joints, urdf_limit = driver.robot.joint_names, driver.robot.velocity_limit.copy()
+        driver.inputs['command'].deliver(
+            JointSample(0.0, tuple(joints), np.zeros(len(joints)), velocity=np.full(len(joints), 1.0)), 'test')
+
+        def moved(seconds: float) -> np.ndarray:
+            before = driver.robot.positions.copy()
+            driver.update(0.0)
+            driver.update(seconds)
+            driver._last_t = None
+            return driver.robot.positions - before
+        (result,) = driver.set_parameters([Parameter('velocity_limit', value=[0.1] * len(joints))])
+        assert result.successful, result.reason
+        assert moved(0.1) == pytest.approx(np.full(len(joints), 0.01))
+        (result,) = driver.set_parameters([Parameter('velocity_limit', value=[0.1, 0.1])])
+        assert (result.successful, result.reason) == (
+            False, f'ValueError: velocity_limit has 2 values for the {len(joints)} joints of panda')
+        assert list(driver.robot.velocity_limit) == [0.1] * len(joints)
+        (result,) = driver.set_parameters([Parameter('velocity_limit', type_=Parameter.Type.DOUBLE_ARRAY, value=[])])
+        assert result.successful, result.reason
+        assert list(driver.robot.velocity_limit) == list(urdf_limit)
+        assert moved(0.01) == pytest.approx(np.full(len(joints), 0.01))  # 1 rad/s, within the URDF's limits
+    finally:
+        driver.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_a_ros2_control_adapter_changes_topics_without_losing_the_old_ones_or_what_it_measured():
+    """A topic name rclpy refuses leaves the adapter on its topics (before, it had destroyed them
+    first and could not go back: Safety); a new command topic keeps what the driver measured,
+    so commands go on without waiting for the next joint state."""
+    from sensor_msgs.msg import JointState
+    from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    adapter = Ros2ControlAdapter('Adapter', composite=CompositeContext(name='itasc', namespace='/changes/itasc'),
+                                 parameters={'robot': 'arm', 'joints': ['a', 'b'],
+                                             'joint_states_topic': '/changes/joint_states'})
+    heard: list = []
+    EventListener(adapter, topics=['/changes/itasc/events'], immediate=True, on_priority=heard.append)
+    try:
+        adapter._on_state(JointState(name=['b', 'a'], position=[2.0, 1.0]))
+        subscription, publisher = adapter._state_sub, adapter._publisher
+        for name in ('joint_states_topic', 'command_topic'):
+            (result,) = adapter.set_parameters([Parameter(name, value='not a topic!')])
+            assert not result.successful and 'InvalidTopicNameException' in result.reason, result.reason
+            assert (adapter._state_sub, adapter._publisher) == (subscription, publisher)
+        assert not [e for e in heard if e.name == 'e_emergency']
+        (result,) = adapter.set_parameters([Parameter('command_topic', value='/changes/commands')])
+        assert result.successful, result.reason
+        assert adapter._publisher.topic_name == '/changes/commands' and adapter._state_sub is subscription
+        assert list(adapter.measured) == [1.0, 2.0]
+        (result,) = adapter.set_parameters([Parameter('joint_states_topic', value='/changes/other_states')])
+        assert result.successful and adapter._state_sub.topic_name == '/changes/other_states'
+        assert adapter.measured is None  # nothing measured on the new topic yet
+    finally:
+        adapter.destroy_node()
         rclpy.try_shutdown()
 
 

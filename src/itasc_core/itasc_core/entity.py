@@ -9,10 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import wraps
-from typing import Callable
+from typing import Any, Callable
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
 
 from .communication.events import EventListener, EventRaiser, events_topic
 from .pace import PACE
@@ -93,6 +95,27 @@ class Entity(Node):
     destroy_subscription = _paced(Node.destroy_subscription)
     destroy_service = _paced(Node.destroy_service)
     destroy_client = _paced(Node.destroy_client)
+
+    def resubscribe(self, current: Subscription | None, msg_type: Any, topic: str, callback: Callable,
+                    qos: Any) -> Subscription:
+        """A subscription of ``msg_type`` to ``topic``: ``current`` if it is one already, else a new
+        one, made before ``current`` is destroyed (a reconfiguration to a topic name rclpy refuses
+        leaves ``current`` as it was, so the entity can take its old parameters back)."""
+        if current is not None and current.topic_name == topic and current.msg_type is msg_type:
+            return current
+        new = self.create_subscription(msg_type, topic, callback, qos)
+        if current is not None:
+            self.destroy_subscription(current)
+        return new
+
+    def republish(self, current: Publisher | None, msg_type: Any, topic: str, qos: Any) -> Publisher:
+        """As :meth:`resubscribe`, for a publisher."""
+        if current is not None and current.topic_name == topic and current.msg_type is msg_type:
+            return current
+        new = self.create_publisher(msg_type, topic, qos)
+        if current is not None:
+            self.destroy_publisher(current)
+        return new
 
     def raiser(self, *, topic: str, source: str | None = None) -> EventRaiser:
         """An :class:`EventRaiser` of this entity's on ``topic``, destroyed with it."""

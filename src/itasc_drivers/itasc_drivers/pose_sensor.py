@@ -6,6 +6,7 @@ world frame) to the Scene: output ``pose`` with semantics ``Pose(<object>|world)
 from __future__ import annotations
 
 from geometry_msgs.msg import PoseStamped
+from pydantic import Field
 from rclpy.subscription import Subscription
 
 from itasc_core.communication.ports import PortSpec
@@ -21,7 +22,7 @@ class PoseSensor(FunctionalEntity):
     _subscription: Subscription | None = None
 
     class Parameters(ParameterModel):
-        object: str = 'object'
+        object: str = Field(default='object', frozen=True)
         """The object whose pose it measures."""
         topic: str = '/object_pose'
         """Where ``geometry_msgs/PoseStamped`` poses (world frame) arrive."""
@@ -32,10 +33,10 @@ class PoseSensor(FunctionalEntity):
                          semantics=object_pose(params.object))]
 
     def configure(self, params: Parameters) -> None:
-        if self._subscription is not None:
-            self.destroy_subscription(self._subscription)
-        self.latest: PoseStamped | None = None
-        self._subscription = self.create_subscription(PoseStamped, params.topic, self._on_pose, 10)
+        subscription = self.resubscribe(self._subscription, PoseStamped, params.topic, self._on_pose, 10)
+        if subscription is not self._subscription:  # another topic: no pose from it yet
+            self.latest: PoseStamped | None = None
+        self._subscription = subscription
 
     def _on_pose(self, msg: PoseStamped) -> None:
         self.latest = msg

@@ -54,9 +54,9 @@ class Ros2ControlAdapter(FunctionalEntity):
     _publisher: Publisher | None = None
 
     class Parameters(ParameterModel):
-        robot: str = 'robot'
+        robot: str = Field(default='robot', frozen=True)
         """The robot it drives."""
-        joints: list[str] = Field(min_length=1)
+        joints: list[str] = Field(min_length=1, frozen=True)
         """The controller's joints, in the order its commands have them."""
         joint_states_topic: str = '/joint_states'
         """Where the driver publishes ``sensor_msgs/JointState``."""
@@ -73,19 +73,25 @@ class Ros2ControlAdapter(FunctionalEntity):
         return driver_ports(params.robot)
 
     def configure(self, params: Parameters) -> None:
+        """Topics and interface may change while it runs: what the driver measured stays while its
+        joint states still come from the same topic."""
         self.joints = list(params.joints)
         self.robot, self.joint_states_topic = params.robot, params.joint_states_topic
-        self._missing_reported = False
+        msg_type = JointTrajectory if params.interface == 'trajectory' else Float64MultiArray
+        publisher = self.republish(self._publisher, msg_type, params.command_topic, 10)
+        try:
+            state_sub = self.resubscribe(self._state_sub, JointState, params.joint_states_topic, self._on_state, 10)
+        except BaseException:
+            if publisher is not self._publisher:
+                self.destroy_publisher(publisher)
+            raise
+        if state_sub is not self._state_sub:
+            self.measured: np.ndarray | None = None
+            self._fresh = False
+            self._missing_reported = False
+        self._state_sub, self._publisher = state_sub, publisher
         self.interface = params.interface
         self.horizon = params.horizon
-        if self._state_sub is not None and self._publisher is not None:  # re-configured: new topics
-            self.destroy_subscription(self._state_sub)
-            self.destroy_publisher(self._publisher)
-        self._state_sub = self.create_subscription(JointState, params.joint_states_topic, self._on_state, 10)
-        msg_type = JointTrajectory if self.interface == 'trajectory' else Float64MultiArray
-        self._publisher = self.create_publisher(msg_type, params.command_topic, 10)
-        self.measured: np.ndarray | None = None
-        self._fresh = False
         self._target: np.ndarray | None = None
         self._last_t: float | None = None
 

@@ -39,18 +39,21 @@ from .ports import driver_ports
 
 __all__ = ['SimulatedRobot', 'main']
 
+#: The limits a model or a parameter change may give, one value per joint (none: the URDF's).
+_LIMITS = ('lower', 'upper', 'velocity_limit')
+
 
 class SimulatedRobot(FunctionalEntity):
     """Integrates commanded joint velocities; publishes the joint state."""
 
     class Parameters(ParameterModel):
-        robot: str = 'robot'
+        robot: str = Field(default='robot', frozen=True)
         """The robot's name."""
-        urdf: str = ''
+        urdf: str = Field(default='', frozen=True)
         """Its URDF file (absolute path)."""
-        base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+        base: Literal['fixed', 'planar', 'free_flyer'] = Field(default='fixed', frozen=True)
         """Its base: fixed, or a mobile base's joints."""
-        initial: dict[str, float] = Field(default_factory=dict)
+        initial: dict[str, float] = Field(default_factory=dict, frozen=True)
         """Initial joint positions by joint name [rad or m] (the others: 0, within the limits)."""
         lower: list[float] = Field(default_factory=list)
         """Lowest position per joint [rad or m]; none: the URDF's."""
@@ -64,12 +67,24 @@ class SimulatedRobot(FunctionalEntity):
         return driver_ports(params.robot)
 
     def configure(self, params: Parameters) -> None:
-        if getattr(self, 'robot', None) is not None:
-            return  # the simulated world keeps its state across re-configuration
-        self.robot = Robot(params.robot, params.urdf, base=params.base)
-        for key in ('lower', 'upper', 'velocity_limit'):
-            if len(getattr(params, key)) == len(getattr(self.robot, key)):
-                getattr(self.robot, key)[:] = getattr(params, key)
+        """The robot (its name, URDF, base and start, read-only) is made once; the limits are
+        applied at every change, the simulated world keeping its state."""
+        robot: Robot | None = getattr(self, 'robot', None)
+        first = robot is None
+        if robot is None:
+            robot = Robot(params.robot, params.urdf, base=params.base)
+            self._urdf_limits = {key: getattr(robot, key).copy() for key in _LIMITS}
+        limits = {}
+        for key in _LIMITS:
+            given, urdf = getattr(params, key), self._urdf_limits[key]
+            if given and len(given) != len(urdf):
+                raise ValueError(f'{key} has {len(given)} values for the {len(urdf)} joints of {params.robot}')
+            limits[key] = np.array(given, dtype=float) if given else urdf
+        for key, values in limits.items():
+            getattr(robot, key)[:] = values
+        if not first:
+            return
+        self.robot = robot
         self.robot.set_positions(list(params.initial), list(params.initial.values()))
         self.robot.set_position_vector(self._within_limits(self.robot.positions))
         self.velocity = np.zeros(self.robot.nv)

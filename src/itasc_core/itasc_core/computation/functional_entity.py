@@ -52,8 +52,13 @@ class FunctionalEntity(Entity):
             for key, value, descriptor in declarations(values):
                 self._types[key] = Parameter.Type(descriptor.type)
                 if isinstance(value, list) and not value:  # an empty list has no type of its own
+                    read_only, descriptor.read_only = descriptor.read_only, False
                     self.declare_parameter(key, self._types[key], descriptor)
-                    self.set_parameters([Parameter(key, self._types[key], [])])
+                    (result,) = self.set_parameters([Parameter(key, self._types[key], [])])
+                    if not result.successful:
+                        raise ValueError(f'{key}: {result.reason}')
+                    # rclpy keeps this descriptor (describe_parameter returns it): read-only from now on
+                    self.describe_parameter(key).read_only = read_only
                 else:
                     self.declare_parameter(key, value, descriptor)
             self.params = values

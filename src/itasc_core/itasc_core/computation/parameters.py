@@ -94,7 +94,7 @@ def _leaves(values: BaseModel, prefix: str = '') -> list[tuple[str, Any, FieldIn
             leaves += _leaves(value, f'{key}.')
         elif isinstance(value, Mapping):
             item = FieldInfo(annotation=_unwrap(typing.get_args(_unwrap(info.annotation))[1]),
-                             description=info.description)
+                             description=info.description, frozen=info.frozen)
             for k, v in value.items():
                 leaves += _leaves(v, f'{key}.{k}.') if isinstance(v, BaseModel) else [(f'{key}.{k}', _plain(v), item)]
         else:

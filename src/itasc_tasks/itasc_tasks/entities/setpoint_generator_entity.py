@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 from pydantic import Field
+from rclpy.subscription import Subscription
 from std_msgs.msg import Float64, Float64MultiArray
 
 from itasc_core.communication.event_names import SAFETY_EVENT
@@ -100,14 +101,13 @@ class SetpointGeneratorEntity(FunctionalEntity):
         self._t0 = 0.0
 
     def _subscribe(self, topic: str) -> None:
-        current = getattr(self, '_subscription', None)
-        if current is not None and current.topic_name == topic:
-            return
-        # the new one first: a topic name rclpy refuses leaves the old subscription as it was
-        new = self.create_subscription(Float64MultiArray, topic, self._on_value, DATA_QOS) if topic else None
-        if current is not None:
+        current: Subscription | None = getattr(self, '_subscription', None)
+        if topic:
+            current = self.resubscribe(current, Float64MultiArray, topic, self._on_value, DATA_QOS)
+        elif current is not None:
             self.destroy_subscription(current)
-        self._subscription = new
+            current = None
+        self._subscription = current
 
     def _on_value(self, msg: Float64MultiArray) -> None:
         self.generator.push(np.asarray(msg.data, dtype=float))  # type: ignore[attr-defined]  # a topic's kind

@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
+from pydantic import Field
 from sensor_msgs.msg import JointState
 
 from ...communication.event_names import JOINTS_MISSING, SAFETY_EVENT, event
@@ -35,11 +36,11 @@ class RobotEntity(FunctionalEntity):
     """Measured joint state of one robot, by name, in model order."""
 
     class Parameters(ParameterModel):
-        robot: str = 'robot'
+        robot: str = Field(default='robot', frozen=True)
         """The robot's name."""
-        urdf: str = ''
+        urdf: str = Field(default='', frozen=True)
         """Its URDF file (absolute path)."""
-        base: Literal['fixed', 'planar', 'free_flyer'] = 'fixed'
+        base: Literal['fixed', 'planar', 'free_flyer'] = Field(default='fixed', frozen=True)
         """Its base: fixed, or a mobile base's joints."""
 
     @classmethod

@@ -66,7 +66,7 @@ class SolverEntity(FunctionalEntity):
     """Joint velocities from the constraint rows of all active Tasks."""
 
     class Parameters(SolverSettings):
-        joint_names: list[str] = Field(default_factory=list)
+        joint_names: list[str] = Field(default_factory=list, frozen=True)
         """The program's joints (Scene order)."""
         lower: list[float] = Field(default_factory=list)
         """Lowest position per joint [rad or m]."""
