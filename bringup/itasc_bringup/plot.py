@@ -88,7 +88,7 @@ def urdf_limits(path: pathlib.Path) -> dict[str, tuple[float, float, float]]:
     except (OSError, ET.ParseError) as err:
         raise PlotError(f'cannot read URDF {path}: {err}') from None
     limits: dict[str, tuple[float, float, float]] = {}
-    for joint in root.iter('joint'):
+    for joint in root.findall('joint'):  # the robot's own, not a <transmission>'s
         limit = joint.find('limit')
         if limit is None or joint.get('type') == 'fixed':
             continue

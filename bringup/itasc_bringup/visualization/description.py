@@ -18,7 +18,7 @@ __all__ = ['robot_description', 'link_tree']
 def robot_description(robot: RobotModel) -> str:
     """The URDF XML of ``robot`` (its ``urdf`` an absolute path) with ``robot.limits`` applied."""
     root = ET.fromstring(Path(robot.urdf).read_text(encoding='utf-8'))
-    joints = {j.get('name'): j for j in root.iter('joint')}
+    joints = {j.get('name'): j for j in root.findall('joint')}  # not a <transmission>'s <joint>
     for name, override in robot.limits.items():
         joint = joints.get(name)
         if joint is None:
@@ -37,8 +37,8 @@ def link_tree(description: str) -> tuple[str, dict[str, tuple[str, bool]]]:
     """The root link of a URDF and, per other link, ``(parent link, joint is fixed)``."""
     root = ET.fromstring(description)
     parents = {j.find('child').get('link', ''): (j.find('parent').get('link', ''), j.get('type') == 'fixed')
-               for j in root.iter('joint')}
-    links = [link.get('name', '') for link in root.iter('link')]
+               for j in root.findall('joint')}
+    links = [link.get('name', '') for link in root.findall('link')]
     roots = [link for link in links if link not in parents]
     if len(roots) != 1:
         raise ValueError(f'URDF {root.get("name")!r} has {len(roots)} root links {roots}, expected one')
