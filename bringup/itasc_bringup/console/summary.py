@@ -57,7 +57,7 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
                  'solve_p50': facts.solve_percentile(50), 'solves': facts.solve_times.count},
         'solver_status': facts.solver_status or None,
         'recording': recording,
-        'plot_command': f'itasc-plot {recording}' if recording else None,
+        'plot_command': f'ros2 run itasc_bringup itasc-plot {recording}' if recording else None,
         'trace': trace,
         'warnings': warnings,
     }
