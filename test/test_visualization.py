@@ -423,3 +423,65 @@ def test_a_burst_of_transitions_is_published_together_and_the_last_array_holds_e
     assert last == {f'burst: {ns}': states[-1] for ns in composites.values()}
     transitions = len(composites) * len(states)
     assert len(received) <= 40, f'{len(received)} arrays of {len(composites)} statuses for {transitions} transitions'
+
+
+ARM = """<?xml version="1.0"?>
+<robot name="arm">
+  <link name="base_link"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="flange"/>
+  <joint name="j1" type="revolute"><parent link="base_link"/><child link="l1"/><origin xyz="0 0 0.3"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0 0 0.4"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+  <joint name="j4" type="fixed"><parent link="l3"/><child link="flange"/><origin xyz="0 0 0.4"/></joint>
+</robot>
+"""
+
+
+def test_the_scene_pictures_of_another_robot_mark_the_frame_its_task_moves(tmp_path):
+    """Not a Panda (no panda_hand_tcp) and placed far from the origin: the blue dot is the first
+    Task's o2 where forward kinematics puts it, in a view that holds the robot."""
+    from PIL import Image
+
+    from itasc_bringup.visualization.picture import render_scene
+
+    (tmp_path / 'arm.urdf').write_text(ARM, encoding='utf-8')
+    (tmp_path / 'arm.yaml').write_text(f"""
+application:
+  name: arm_reach
+  rate: 100
+  program:
+    name: itasc
+    robots:
+      - {{name: arm, urdf: {tmp_path / 'arm.urdf'}, xyz: [2.0, 1.0, 0.0], frames: [{{name: tool, link: flange}}]}}
+    objects:
+      - {{name: target, xyz: [2.3, 1.2, 0.6]}}
+    tasks:
+      - {{name: Reach, type: cartesian, o1: target, o2: arm/tool, outputs: [x, y, z],
+         controller: {{kind: p, kp: 2.0}}, setpoint: {{kind: minimum_jerk, pose: {{xyz: [0, 0, 0]}}, duration: 1.0}}}}
+    solver: {{kind: qp}}
+  drivers:
+    - {{robot: arm, kind: simulated, initial: {{j2: 0.3, j3: 0.5}}}}
+""", encoding='utf-8')
+    mcap = tmp_path / 'run.mcap'
+    result = subprocess.run([*BOOTSTRAP, str(tmp_path / 'arm.yaml'), '--duration', '2', '--record', str(mcap)],
+                            capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    drawn = render_scene(mcap, tmp_path / 'scene', gif=False)
+    assert drawn and drawn[-1].path.name == 'scene_end.png'
+    model = pin.buildModelFromXML(ARM)
+    data = model.createData()
+    with AnyReader([mcap]) as reader:
+        connections = [c for c in reader.connections if c.topic == '/arm_reach/arm/joint_states']
+        states = {_key(m.header.stamp): m for m in (reader.deserialize(raw, c.msgtype)
+                                                     for c, _, raw in reader.messages(connections=connections))}
+    for d in drawn:
+        q = np.array([dict(zip(states[d.stamp].name, states[d.stamp].position))[j] for j in ('j1', 'j2', 'j3')])
+        pin.framesForwardKinematics(model, data, q)
+        assert np.abs(d.tool - (data.oMf[model.getFrameId('flange')].translation + [2.0, 1.0, 0.0])).max() < 1e-9
+        image = np.asarray(Image.open(d.path).convert('RGB')).astype(int)
+        x, y = round(d.tool_pixel[0]), round(d.tool_pixel[1])
+        assert 0 < x < image.shape[1] and 0 < y < image.shape[0]
+        patch = image[y - 2:y + 3, x - 2:x + 3].reshape(-1, 3)
+        assert any(b > 180 and r < 90 and g < 90 for r, g, b in patch), patch

@@ -2,10 +2,12 @@
 Foxglove would show, drawn with matplotlib from the recording's ``/tf_static``, ``/tf`` and markers
 (paper §4.1 "Scene": robots, objects and their object frames; §2.2 the Tasks between them).
 
-Robots are drawn as their TF links (parent to child link origins), the tool as a blue dot; object
-frames as axes; the targets, the obstacles with their size, each distance constraint with its
-``d_min`` sphere, in the colour of its state. One PNG per transition of the program's Running
-sub-FSM (``scene_<n>_<state>.png``), one at the end (``scene_end.png``), and ``scene.gif``.
+Robots are drawn as their TF links (parent to child link origins), the tool (the robot frame the
+first Task moves, its ``o2``) as a blue dot; object frames as axes; the targets, the obstacles
+with their size, each distance constraint with its ``d_min`` sphere, in the colour of its state.
+One PNG per transition of the program's Running sub-FSM (``scene_<n>_<state>.png``), one at the
+end (``scene_end.png``), and ``scene.gif``. The view holds everything the run shows at any time
+(a mobile base driving off, a humanoid's head), the same for every picture.
 """
 
 from __future__ import annotations
@@ -88,7 +90,35 @@ class _Tree:
         return m
 
 
-def _draw(ax, tree: _Tree, markers, stamp, *, tool: str, title: str) -> np.ndarray:
+def _tool(tree: _Tree, markers) -> str:
+    """The frame to mark: the first Task's ``o2`` (where its label is), else the frame deepest
+    in the TF tree (the end of a kinematic chain)."""
+    labels = [m.header.frame_id for m in markers if m.ns == 'tasks']
+    if labels:
+        return labels[0]
+    edges = tree.edges(next(iter(tree.moving), None))
+
+    def depth(frame: str) -> int:
+        return 0 if frame == 'world' else 1 + depth(edges[frame][0])
+    return max(edges, key=depth)
+
+
+def _view(tree: _Tree, samples: list, *, margin: float = 0.1) -> tuple[np.ndarray, float]:
+    """Centre and half width of a cube holding every frame and marker of ``samples`` (at most 50
+    of them looked at)."""
+    points = []
+    for _, array, stamp in samples[::max(1, len(samples) // 50)] + samples[-1:]:
+        edges = tree.edges(stamp)
+        points += [tree.world(f, edges)[:3, 3] for f in edges]
+        for marker in array.markers:
+            centre = (tree.world(marker.header.frame_id, edges) @ _pose_matrix(marker.pose))[:3, 3]
+            points += [centre - marker.scale.x / 2, centre + marker.scale.x / 2] if marker.type == 2 else [centre]
+    low, high = np.min(points + [np.zeros(3)], axis=0), np.max(points + [np.zeros(3)], axis=0)
+    return (low + high) / 2, float(np.max(high - low)) / 2 + margin
+
+
+def _draw(ax, tree: _Tree, markers, stamp, *, tool: str, title: str,
+          view: tuple[np.ndarray, float]) -> np.ndarray:
     from mpl_toolkits.mplot3d import proj3d  # noqa: F401  (registers the 3-D projection)
 
     edges = tree.edges(stamp)
@@ -112,7 +142,10 @@ def _draw(ax, tree: _Tree, markers, stamp, *, tool: str, title: str) -> np.ndarr
             ax.plot_wireframe(c[0] + r * np.cos(u) * np.sin(v), c[1] + r * np.sin(u) * np.sin(v),
                               c[2] + r * np.cos(v), color=colour, alpha=max(marker.color.a, 0.3), linewidth=0.6)
     ax.scatter(*world[tool], color=TOOL_COLOUR, s=60, depthshade=False, zorder=10)
-    ax.set_xlim(-0.2, 0.8), ax.set_ylim(-0.5, 0.5), ax.set_zlim(0.0, 1.0)
+    centre, half = view
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
     ax.set_box_aspect((1, 1, 1))
     ax.set_xlabel('x [m]'), ax.set_ylabel('y [m]'), ax.set_zlabel('z [m]')
     ax.set_title(title)
@@ -138,10 +171,13 @@ def render_scene(path: pathlib.Path, out: pathlib.Path, *, tool: str | None = No
     if not arrays or '/tf_static' not in messages:
         return []
     tree = _Tree(messages)
-    tool = tool or next(c for c in tree.static if c.endswith('_hand_tcp'))
     samples = [(t, a, (a.markers[0].header.stamp.sec, a.markers[0].header.stamp.nanosec))
                for t, a in arrays if a.markers]
     samples = [s for s in samples if s[2] in tree.moving]
+    if not samples:
+        return []
+    tool = tool or _tool(tree, samples[0][1].markers)
+    view = _view(tree, samples)
     times = [t for t, _, _ in samples]
     program = next((v for k, v in messages.items() if k.endswith('/state')), [])
     moments, last = [], None
@@ -160,7 +196,7 @@ def render_scene(path: pathlib.Path, out: pathlib.Path, *, tool: str | None = No
         fig = plt.figure(figsize=(6, 6), dpi=100)
         ax = fig.add_subplot(projection='3d')
         title = f'{name}  (t = {(times[index] - times[0]) * 1e-9:.2f} s)'
-        point = _draw(ax, tree, array.markers, stamp, tool=tool, title=title)
+        point = _draw(ax, tree, array.markers, stamp, tool=tool, title=title, view=view)
         file = out / ('scene_end.png' if name == 'end' else f'scene_{n}_{name}.png')
         fig.canvas.draw()
         pixel = _pixel(fig, ax, point)
@@ -175,7 +211,8 @@ def render_scene(path: pathlib.Path, out: pathlib.Path, *, tool: str | None = No
             step = max(1, len(samples) // 150)
             for t, array, stamp in samples[::step]:
                 ax.cla()
-                _draw(ax, tree, array.markers, stamp, tool=tool, title=f't = {(t - times[0]) * 1e-9:.1f} s')
+                _draw(ax, tree, array.markers, stamp, tool=tool, title=f't = {(t - times[0]) * 1e-9:.1f} s',
+                      view=view)
                 writer.grab_frame()
         plt.close(fig)
     return drawn
