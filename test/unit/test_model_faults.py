@@ -106,6 +106,17 @@ def test_an_initial_joint_position_beyond_the_models_own_limits_is_refused(confi
     assert '1.571' in err.message and ', 1.2]' in err.message, str(err)
 
 
+def test_two_robots_whose_joints_have_the_same_names_are_refused(config):
+    """Two Pandas from one URDF: the Scene and the Solver know joints by name. Before, the model was
+    taken and the deployment failed after the start (Safety, 'use Robot(prefix=...)')."""
+    edit_yaml(_program(config), lambda p: p['robots'].append({'name': 'twin', 'urdf': 'panda.urdf',
+                                                               'xyz': [0.0, 1.0, 0.0]}))
+    edit_yaml(_app(config), lambda a: a['application']['drivers'].append({'robot': 'twin', 'kind': 'simulated'}))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_program(config)), 'robots[1].urdf'), str(err)
+    assert "robot 'twin' has joints of the same names as robot 'panda' (panda_joint1, " in err.message, str(err)
+
+
 @pytest.mark.parametrize('field, task, value', [
     ('outputs', 'retreat', ['x', 'z', 'x']),  # a Cartesian Task's x twice: its row twice
     ('joints', 'posture', ['panda_joint1', 'panda_joint2', 'panda_joint1']),

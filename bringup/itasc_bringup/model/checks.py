@@ -118,6 +118,7 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
     for robot in resolved.program.robots:
         robot.urdf = robots[robot.name][0]
     joints = {name: list(model.joint_names) for name, (_, model) in robots.items()}
+    _distinct_joints(where, program, joints)
     _objects(where, program)
     _tasks(where, program, robots={r.name: r for r in program.robots}, models={n: m for n, (_, m) in robots.items()},
            joints=[j for js in joints.values() for j in js])
@@ -172,6 +173,20 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
             raise where.error(loc + ('limits', joint), f"robot '{robot.name}' has no joint '{joint}'; "
                               f'joints: {model.joint_names}')
     return str(urdf), model
+
+
+def _distinct_joints(where: _Where, program: Program, joints: dict[str, list[str]]) -> None:
+    """The Scene and the Solver know a joint by its name: two robots must not share one."""
+    owner: dict[str, str] = {}
+    for i, robot in enumerate(program.robots):
+        shared = [j for j in joints[robot.name] if j in owner]
+        if shared:
+            raise where.error(('program', 'robots', i, 'urdf'), (
+                f"robot '{robot.name}' has joints of the same names as robot '{owner[shared[0]]}' "
+                f"({', '.join(shared)}); the joints of a program's robots are known by name, so each robot "
+                "needs a URDF whose joints are its own (e.g. generated with a prefix, as xacro's prefix "
+                "argument does)"))
+        owner.update(dict.fromkeys(joints[robot.name], robot.name))
 
 
 def _find_urdf(directory: Path, reference: str) -> Path | None:
