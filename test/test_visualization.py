@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+from bisect import bisect_right
 import subprocess
 import sys
 from collections import defaultdict
@@ -439,14 +440,15 @@ ARM = """<?xml version="1.0"?>
 """
 
 
-def test_the_scene_pictures_of_another_robot_mark_the_frame_its_task_moves(tmp_path):
-    """Not a Panda (no panda_hand_tcp) and placed far from the origin: the blue dot is the first
-    Task's o2 where forward kinematics puts it, in a view that holds the robot."""
+def test_the_scene_pictures_of_other_robots_mark_the_frame_the_first_task_moves(tmp_path):
+    """Not a Panda (no panda_hand_tcp), two of them (each robot's TF has stamps of its own), far
+    from the origin: the blue dot is the first Task's o2 where forward kinematics puts it."""
     from PIL import Image
 
     from itasc_bringup.visualization.picture import render_scene
 
     (tmp_path / 'arm.urdf').write_text(ARM, encoding='utf-8')
+    (tmp_path / 'other.urdf').write_text(ARM.replace('name="j', 'name="b_j'), encoding='utf-8')
     (tmp_path / 'arm.yaml').write_text(f"""
 application:
   name: arm_reach
@@ -455,14 +457,19 @@ application:
     name: itasc
     robots:
       - {{name: arm, urdf: {tmp_path / 'arm.urdf'}, xyz: [2.0, 1.0, 0.0], frames: [{{name: tool, link: flange}}]}}
+      - {{name: other, urdf: {tmp_path / 'other.urdf'}, xyz: [2.0, -1.0, 0.0], frames: [{{name: tool, link: flange}}]}}
     objects:
       - {{name: target, xyz: [2.3, 1.2, 0.6]}}
+      - {{name: goal, xyz: [2.2, -1.2, 0.7]}}
     tasks:
       - {{name: Reach, type: cartesian, o1: target, o2: arm/tool, outputs: [x, y, z],
+         controller: {{kind: p, kp: 2.0}}, setpoint: {{kind: minimum_jerk, pose: {{xyz: [0, 0, 0]}}, duration: 1.0}}}}
+      - {{name: Other, type: cartesian, o1: goal, o2: other/tool, outputs: [x, y, z],
          controller: {{kind: p, kp: 2.0}}, setpoint: {{kind: minimum_jerk, pose: {{xyz: [0, 0, 0]}}, duration: 1.0}}}}
     solver: {{kind: qp}}
   drivers:
     - {{robot: arm, kind: simulated, initial: {{j2: 0.3, j3: 0.5}}}}
+    - {{robot: other, kind: simulated, initial: {{b_j2: -0.3, b_j3: 0.5}}}}
 """, encoding='utf-8')
     mcap = tmp_path / 'run.mcap'
     result = subprocess.run([*BOOTSTRAP, str(tmp_path / 'arm.yaml'), '--duration', '2', '--record', str(mcap)],
@@ -476,8 +483,10 @@ application:
         connections = [c for c in reader.connections if c.topic == '/arm_reach/arm/joint_states']
         states = {_key(m.header.stamp): m for m in (reader.deserialize(raw, c.msgtype)
                                                      for c, _, raw in reader.messages(connections=connections))}
-    for d in drawn:
-        q = np.array([dict(zip(states[d.stamp].name, states[d.stamp].position))[j] for j in ('j1', 'j2', 'j3')])
+    stamps = sorted(states)
+    for d in drawn:  # the arm's newest joint state at the picture's stamp, as TF looks it up
+        state = states[stamps[bisect_right(stamps, d.stamp) - 1]]
+        q = np.array([dict(zip(state.name, state.position))[j] for j in ('j1', 'j2', 'j3')])
         pin.framesForwardKinematics(model, data, q)
         assert np.abs(d.tool - (data.oMf[model.getFrameId('flange')].translation + [2.0, 1.0, 0.0])).max() < 1e-9
         image = np.asarray(Image.open(d.path).convert('RGB')).astype(int)

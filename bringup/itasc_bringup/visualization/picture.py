@@ -13,7 +13,7 @@ end (``scene_end.png``), and ``scene.gif``. The view holds everything the run sh
 from __future__ import annotations
 
 import pathlib
-from bisect import bisect_left
+from bisect import bisect_left, bisect_right
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any
@@ -29,7 +29,7 @@ TF, TF_STATIC, MARKERS, STATE = ('tf2_msgs/msg/TFMessage', 'tf2_msgs/msg/TFMessa
 
 @dataclass
 class Drawn:
-    """One picture: its file, the stamp of the joint state it shows, where the tool was drawn
+    """One picture: its file, the stamp of the markers it shows (a robot's joint state), where the tool was drawn
     (world coordinates and pixel coordinates in the PNG, origin top left)."""
 
     path: pathlib.Path
@@ -68,19 +68,29 @@ def _read(path: pathlib.Path) -> dict[str, list[tuple[int, Any]]]:
 
 
 class _Tree:
-    """TF edges over time: static ones, and the moving ones by stamp."""
+    """TF edges over time: static ones, and the moving ones as TF looks them up (each frame's
+    newest transform at or before a stamp: every robot's joint states have stamps of their own)."""
 
     def __init__(self, messages) -> None:
         self.static = {t.child_frame_id: (t.header.frame_id, _matrix(t.transform))
                        for _, m in messages.get('/tf_static', []) for t in m.transforms}
-        self.moving: dict[tuple[int, int], dict] = defaultdict(dict)
+        moving: dict[str, list] = defaultdict(list)
         for _, m in messages.get('/tf', []):
             for t in m.transforms:
-                self.moving[(t.header.stamp.sec, t.header.stamp.nanosec)][t.child_frame_id] = (
-                    t.header.frame_id, _matrix(t.transform))
+                moving[t.child_frame_id].append(((t.header.stamp.sec, t.header.stamp.nanosec), t.header.frame_id,
+                                                 _matrix(t.transform)))
+        self._moving = {child: sorted(entries, key=lambda e: e[0]) for child, entries in moving.items()}
+        self._times = {child: [e[0] for e in entries] for child, entries in self._moving.items()}
+        #: The stamps of moving transforms from which on every moving frame is known.
+        first = max((times[0] for times in self._times.values()), default=None)
+        self.stamps = {s for times in self._times.values() for s in times if first is not None and s >= first}
 
     def edges(self, stamp) -> dict:
-        return self.static | self.moving.get(stamp, {})
+        edges = dict(self.static)
+        for child, entries in self._moving.items():
+            _, parent, matrix = entries[max(bisect_right(self._times[child], stamp) - 1, 0)]
+            edges[child] = (parent, matrix)
+        return edges
 
     def world(self, frame: str, edges: dict) -> np.ndarray:
         m = np.eye(4)
@@ -96,7 +106,7 @@ def _tool(tree: _Tree, markers) -> str:
     labels = [m.header.frame_id for m in markers if m.ns == 'tasks']
     if labels:
         return labels[0]
-    edges = tree.edges(next(iter(tree.moving), None))
+    edges = tree.edges(min(tree.stamps))
 
     def depth(frame: str) -> int:
         return 0 if frame == 'world' else 1 + depth(edges[frame][0])
@@ -173,7 +183,7 @@ def render_scene(path: pathlib.Path, out: pathlib.Path, *, tool: str | None = No
     tree = _Tree(messages)
     samples = [(t, a, (a.markers[0].header.stamp.sec, a.markers[0].header.stamp.nanosec))
                for t, a in arrays if a.markers]
-    samples = [s for s in samples if s[2] in tree.moving]
+    samples = [s for s in samples if s[2] in tree.stamps]
     if not samples:
         return []
     tool = tool or _tool(tree, samples[0][1].markers)
