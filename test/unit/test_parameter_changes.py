@@ -281,7 +281,14 @@ def test_a_ros2_control_adapter_changes_topics_without_losing_the_old_ones_or_wh
             (result,) = adapter.set_parameters([Parameter(name, value='not a topic!')])
             assert not result.successful and 'InvalidTopicNameException' in result.reason, result.reason
             assert (adapter._state_sub, adapter._publisher) == (subscription, publisher)
-        assert not [e for e in heard if e.name == 'e_emergency']
+        # both at once, one of them refused: neither changes, not even the one that was fine
+        result = adapter.set_parameters_atomically([Parameter('command_topic', value='/changes/elsewhere'),
+                                                    Parameter('joint_states_topic', value='not a topic!')])
+        assert not result.successful and 'InvalidTopicNameException' in result.reason, result.reason
+        assert (adapter._state_sub, adapter._publisher) == (subscription, publisher)
+        assert adapter._publisher.topic_name == '/velocity_controller/commands'
+        spin(adapter, lambda: len(heard) >= 3)
+        assert not [e for e in heard if e.name == 'e_emergency'], heard
         (result,) = adapter.set_parameters([Parameter('command_topic', value='/changes/commands')])
         assert result.successful, result.reason
         assert adapter._publisher.topic_name == '/changes/commands' and adapter._state_sub is subscription

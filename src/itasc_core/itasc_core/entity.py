@@ -96,26 +96,31 @@ class Entity(Node):
     destroy_service = _paced(Node.destroy_service)
     destroy_client = _paced(Node.destroy_client)
 
-    def resubscribe(self, current: Subscription | None, msg_type: Any, topic: str, callback: Callable,
-                    qos: Any) -> Subscription:
-        """A subscription of ``msg_type`` to ``topic``: ``current`` if it is one already, else a new
-        one, made before ``current`` is destroyed (a reconfiguration to a topic name rclpy refuses
-        leaves ``current`` as it was, so the entity can take its old parameters back)."""
-        if current is not None and current.topic_name == topic and current.msg_type is msg_type:
-            return current
-        new = self.create_subscription(msg_type, topic, callback, qos)
-        if current is not None:
-            self.destroy_subscription(current)
-        return new
+    # A reconfiguration makes every new endpoint it needs before it lets go of any old one
+    # (:meth:`let_go`): a topic name rclpy refuses then leaves the entity with the endpoints it had,
+    # and it can take its old parameters back.
 
-    def republish(self, current: Publisher | None, msg_type: Any, topic: str, qos: Any) -> Publisher:
-        """As :meth:`resubscribe`, for a publisher."""
+    def subscription_for(self, current: Subscription | None, msg_type: Any, topic: str, callback: Callable,
+                         qos: Any) -> Subscription:
+        """``current`` if it subscribes ``msg_type`` on ``topic`` already, else a new subscription."""
         if current is not None and current.topic_name == topic and current.msg_type is msg_type:
             return current
-        new = self.create_publisher(msg_type, topic, qos)
-        if current is not None:
-            self.destroy_publisher(current)
-        return new
+        return self.create_subscription(msg_type, topic, callback, qos)
+
+    def publisher_for(self, current: Publisher | None, msg_type: Any, topic: str, qos: Any) -> Publisher:
+        """``current`` if it publishes ``msg_type`` on ``topic`` already, else a new publisher."""
+        if current is not None and current.topic_name == topic and current.msg_type is msg_type:
+            return current
+        return self.create_publisher(msg_type, topic, qos)
+
+    def let_go(self, old: Subscription | Publisher | None, *, kept: Subscription | Publisher | None) -> None:
+        """Destroy ``old`` unless it is the endpoint ``kept``."""
+        if old is None or old is kept:
+            return
+        if isinstance(old, Subscription):
+            self.destroy_subscription(old)
+        else:
+            self.destroy_publisher(old)
 
     def raiser(self, *, topic: str, source: str | None = None) -> EventRaiser:
         """An :class:`EventRaiser` of this entity's on ``topic``, destroyed with it."""

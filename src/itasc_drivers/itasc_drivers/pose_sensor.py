@@ -33,7 +33,8 @@ class PoseSensor(FunctionalEntity):
                          semantics=object_pose(params.object))]
 
     def configure(self, params: Parameters) -> None:
-        subscription = self.resubscribe(self._subscription, PoseStamped, params.topic, self._on_pose, 10)
+        subscription = self.subscription_for(self._subscription, PoseStamped, params.topic, self._on_pose, 10)
+        self.let_go(self._subscription, kept=subscription)
         if subscription is not self._subscription:  # another topic: no pose from it yet
             self.latest: PoseStamped | None = None
         self._subscription = subscription

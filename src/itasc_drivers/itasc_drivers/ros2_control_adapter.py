@@ -78,13 +78,14 @@ class Ros2ControlAdapter(FunctionalEntity):
         self.joints = list(params.joints)
         self.robot, self.joint_states_topic = params.robot, params.joint_states_topic
         msg_type = JointTrajectory if params.interface == 'trajectory' else Float64MultiArray
-        publisher = self.republish(self._publisher, msg_type, params.command_topic, 10)
+        state_sub = self.subscription_for(self._state_sub, JointState, params.joint_states_topic, self._on_state, 10)
         try:
-            state_sub = self.resubscribe(self._state_sub, JointState, params.joint_states_topic, self._on_state, 10)
+            publisher = self.publisher_for(self._publisher, msg_type, params.command_topic, 10)
         except BaseException:
-            if publisher is not self._publisher:
-                self.destroy_publisher(publisher)
+            self.let_go(state_sub, kept=self._state_sub)
             raise
+        self.let_go(self._publisher, kept=publisher)
+        self.let_go(self._state_sub, kept=state_sub)
         if state_sub is not self._state_sub:
             self.measured: np.ndarray | None = None
             self._fresh = False

@@ -102,12 +102,9 @@ class SetpointGeneratorEntity(FunctionalEntity):
 
     def _subscribe(self, topic: str) -> None:
         current: Subscription | None = getattr(self, '_subscription', None)
-        if topic:
-            current = self.resubscribe(current, Float64MultiArray, topic, self._on_value, DATA_QOS)
-        elif current is not None:
-            self.destroy_subscription(current)
-            current = None
-        self._subscription = current
+        new = self.subscription_for(current, Float64MultiArray, topic, self._on_value, DATA_QOS) if topic else None
+        self.let_go(current, kept=new)
+        self._subscription = new
 
     def _on_value(self, msg: Float64MultiArray) -> None:
         self.generator.push(np.asarray(msg.data, dtype=float))  # type: ignore[attr-defined]  # a topic's kind
