@@ -29,8 +29,8 @@ TF, TF_STATIC, MARKERS, STATE = ('tf2_msgs/msg/TFMessage', 'tf2_msgs/msg/TFMessa
 
 @dataclass
 class Drawn:
-    """One picture: its file, the stamp of the markers it shows (a robot's joint state), where the tool was drawn
-    (world coordinates and pixel coordinates in the PNG, origin top left)."""
+    """One picture: its file, the stamp of the markers it shows (a robot's joint state), where the
+    tool was drawn (world coordinates and pixel coordinates in the PNG, origin top left)."""
 
     path: pathlib.Path
     stamp: tuple[int, int]
