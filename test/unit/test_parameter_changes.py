@@ -301,6 +301,34 @@ def test_a_ros2_control_adapter_changes_topics_without_losing_the_old_ones_or_wh
         rclpy.try_shutdown()
 
 
+def test_what_a_monitor_watches_and_says_is_read_only_and_its_threshold_takes_effect():
+    """A Monitor's field, condition, event and switching events are what the program's FSM was
+    checked against (the model names the field of the watched sample and the event a transition
+    waits for); before, field = 'bogus' was taken and the next sample put the program in Safety
+    (AttributeError), and another event silently left the transition waiting for good."""
+    from sensor_msgs.msg import JointState
+    from itasc_core.communication.ports import PortSpec
+    from itasc_core.computation.monitor import Monitor
+    watch = PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
+                     semantics='JointPositions(arm)', id='/changes/T/Driver/joint_state')
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    monitor = Monitor('far', composite=TASK, watch=watch, parameters={
+        'field': 'position[0]', 'condition': 'above', 'threshold': 1.0, 'event': 'e_far'})
+    try:
+        for name, value in (('field', 'bogus'), ('condition', 'below'), ('event', 'e_other'),
+                            ('enable_on', ['e_x']), ('disable_on', ['e_y'])):
+            (result,) = monitor.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (False, f'Trying to set a read-only parameter: {name}.')
+        (result,) = monitor.set_parameters([Parameter('threshold', value=0.5)])
+        assert result.successful, result.reason
+        monitor.watch.deliver(JointState(name=['a'], position=[0.7]), 'test')
+        monitor.update(0.0)
+        assert monitor.raised == 1  # 0.7 is above the new threshold, not the old one
+    finally:
+        monitor.destroy_node()
+        rclpy.try_shutdown()
+
+
 @pytest.mark.parametrize('entity, values', [
     ('Monitor', {'condition': 'above', 'threshold': math.nan, 'event': 'e_x'}),  # it would never fire
     ('ConstraintControllerEntity', {'lower': [0.0, math.nan]}),

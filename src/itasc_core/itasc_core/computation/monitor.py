@@ -56,17 +56,17 @@ class Monitor(FunctionalEntity):
     """Watches one data-flow port; raises ``event`` once each time ``condition`` starts to hold."""
 
     class Parameters(ParameterModel):
-        field: str = ''
+        field: str = Field(default='', frozen=True)
         """What it reads of each sample: ``a.b[2]``-style path ('': the sample itself)."""
-        condition: str = 'above'
+        condition: str = Field(default='above', frozen=True)
         """When it raises its event: a registered condition (its own parameters follow)."""
-        event: str = Field(default='e_monitor', pattern=r'^e_[A-Za-z0-9_]+$')
+        event: str = Field(default='e_monitor', pattern=r'^e_[A-Za-z0-9_]+$', frozen=True)
         """The event it raises once the condition starts to hold."""
         enabled: bool = True
         """Whether it runs from the start."""
-        enable_on: list[str] = Field(default_factory=list)
+        enable_on: list[str] = Field(default_factory=list, frozen=True)
         """The events that switch it on."""
-        disable_on: list[str] = Field(default_factory=list)
+        disable_on: list[str] = Field(default_factory=list, frozen=True)
         """The events that switch it off."""
 
     @classmethod
