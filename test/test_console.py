@@ -4,15 +4,20 @@ and ``itasc-plot``'s inequality panel drawn from the recorded distances and boun
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
+import pty
 import re
+import select
+import struct
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
 import numpy as np
-import pexpect
 import pyte
 import pytest
 import yaml
@@ -131,20 +136,43 @@ def test_the_inequality_plot_is_the_recorded_distance_against_d_min(approach):
     assert np.all(avoid.distance[avoid.active] < 0.15 + 0.02)
 
 
+def _on_a_terminal(args: list[str], *, rows: int, columns: int) -> tuple[subprocess.Popen, int]:
+    """``args`` running with a pseudo-terminal of ``rows`` x ``columns`` as stdin, stdout and
+    stderr, and the terminal's side to read what it shows. subprocess forks and execs in C: no
+    Python runs in the child of this multi-threaded process (pty.fork, as pexpect uses it, may
+    deadlock there)."""
+    terminal, side = pty.openpty()
+    fcntl.ioctl(side, termios.TIOCSWINSZ, struct.pack('HHHH', rows, columns, 0, 0))
+    try:
+        return subprocess.Popen(args, stdin=side, stdout=side, stderr=side, start_new_session=True), terminal
+    finally:
+        os.close(side)
+
+
+def _shown(terminal: int, *, timeout: float) -> bytes | None:
+    """What the program wrote to its terminal since the last call (b'' if nothing within
+    ``timeout`` s), None once it closed it."""
+    if not select.select([terminal], [], [], timeout)[0]:
+        return b''
+    try:
+        return os.read(terminal, 65536) or None
+    except OSError:  # EIO: every process holding the terminal has ended
+        return None
+
+
 def test_the_live_view_shows_the_tree_the_tasks_and_safety_in_red():
     screen = pyte.Screen(140, 50)
     stream = pyte.ByteStream(screen)
-    child = pexpect.spawn(BOOTSTRAP[0], [*BOOTSTRAP[1:], str(MODELS / 'infeasible.yaml'), '--duration', '8'],
-                          dimensions=(50, 140), timeout=180)
+    child, terminal = _on_a_terminal([*BOOTSTRAP, str(MODELS / 'infeasible.yaml'), '--duration', '8'],
+                                     rows=50, columns=140)
+    deadline = time.monotonic() + 180
     try:
         running, safety = None, None
-        while True:
-            try:
-                stream.feed(child.read_nonblocking(65536, timeout=1))
-            except pexpect.TIMEOUT:
-                continue
-            except pexpect.EOF:
+        while time.monotonic() < deadline:
+            data = _shown(terminal, timeout=1.0)
+            if data is None:
                 break
+            stream.feed(data)
             shown = '\n'.join(screen.display)
             # the children reach Running before their parent: wait for the whole tree
             if (running is None and re.search(r'^infeasible +Run\.Running', shown, flags=re.M)
@@ -153,10 +181,13 @@ def test_the_live_view_shows_the_tree_the_tasks_and_safety_in_red():
             if safety is None and 'SAFETY:' in shown and 'rate - (Safety: nothing runs)' in shown:
                 safety = (shown, [row for row in range(screen.lines) if screen.display[row].startswith('SAFETY:')],
                           {row: dict(screen.buffer[row]) for row in range(screen.lines)})
-        child.close()
+        child.wait(timeout=max(deadline - time.monotonic(), 1.0))
     finally:
-        child.terminate(force=True)
-    assert child.exitstatus == 3, '\n'.join(screen.display)
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+        os.close(terminal)
+    assert child.returncode == 3, '\n'.join(screen.display)
     assert running is not None, '\n'.join(screen.display)
     # the tree of composites, each with its state, and a row per task
     for line in (r'^infeasible\s+Run\.Running', r'^└── itasc\s+Run\.Running\.\w+\s+path: approach',
