@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 from processes import Spawned
 
 REPLAY = [sys.executable, '-m', 'itasc_bringup.replay']
@@ -112,6 +113,21 @@ def test_an_event_from_outside_the_application_is_raised_again_when_it_was_recor
     assert code == 0, out
     assert re.search(r'^Running sub-FSM of itasc, replayed: approach -> wait_for_gripper -> retreat$', out, re.M), out
     assert _largest(out, 'command') <= 1e-9 and _largest(out, 'task rows') <= 1e-9, out
+
+
+def test_a_run_of_a_model_file_of_ones_own_replays_without_naming_it_again(tmp_path):
+    """The bag keeps the model file it was recorded from (metadata custom_data, as ros2 bag record
+    --custom-data keeps it); before, only a shipped application could be found, by the name of the
+    topics ('no application named ...')."""
+    model = _changed_model(tmp_path, 'apps/approach_object.yaml', 'name: approach_object', 'name: my_cell')
+    bag = tmp_path / 'mine'
+    with Spawned([*BOOTSTRAP, str(model), '--duration', '3', '--record', str(bag)]) as app:
+        assert app.finish(timeout=120) == 0, app.output()
+    metadata = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert metadata['custom_data'] == {'itasc.application': str(model.resolve())}
+    code, out = _replay(bag)
+    assert code == 0, out
+    assert _largest(out, 'command') <= 1e-9, out
 
 
 def test_a_file_that_is_not_a_bag_is_a_clear_error(tmp_path):

@@ -18,7 +18,7 @@ follows the ``ros2`` profile:
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +28,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 
 from .definitions import definition, type_hash
 
-__all__ = ['BagWriter', 'BagExists', 'bag_metadata', 'qos_profiles', 'mcap_path_of', 'METADATA_VERSION', 'ROS_DISTRO']
+__all__ = ['BagWriter', 'BagExists', 'bag_metadata', 'qos_profiles', 'mcap_path_of', 'METADATA_VERSION', 'ROS_DISTRO',
+           'APPLICATION_KEY']
 
+#: The key of a bag's ``custom_data`` that holds the application model file it was recorded from.
+APPLICATION_KEY = 'itasc.application'
 #: The metadata version rosbag2 Jazzy writes.
 METADATA_VERSION = 9
 ROS_DISTRO = 'jazzy'
@@ -64,9 +67,11 @@ def _dump(value: Any) -> str:
     return yaml.safe_dump(value, sort_keys=False, default_flow_style=False)
 
 
-def bag_metadata(*, file_name: str, topics: list[dict[str, Any]], start_ns: int, end_ns: int) -> dict[str, Any]:
+def bag_metadata(*, file_name: str, topics: list[dict[str, Any]], start_ns: int, end_ns: int,
+                 custom_data: Mapping[str, str] | None = None) -> dict[str, Any]:
     """The ``rosbag2_bagfile_information`` of one MCAP file, field by field in rosbag2 Jazzy's
-    order. ``topics``: ``{name, type, offered_qos_profiles, type_description_hash, message_count}``."""
+    order. ``topics``: ``{name, type, offered_qos_profiles, type_description_hash, message_count}``;
+    ``custom_data``: what ``ros2 bag record --custom-data KEY=VALUE`` keeps."""
     count = sum(t['message_count'] for t in topics)
     start = start_ns if count else 0
     duration = max(end_ns - start_ns, 0) if count else 0
@@ -95,7 +100,7 @@ def bag_metadata(*, file_name: str, topics: list[dict[str, Any]], start_ns: int,
             'duration': {'nanoseconds': duration},
             'message_count': count,
         }],
-        'custom_data': None,
+        'custom_data': dict(custom_data) if custom_data else None,
         'ros_distro': ROS_DISTRO,
     }
 
@@ -116,8 +121,10 @@ def mcap_path_of(path: Path) -> Path:
 class BagWriter:
     """Writes one recording: a bag folder, or a bare MCAP file when ``path`` ends in ``.mcap``."""
 
-    def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup') -> None:
+    def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup',
+                 custom_data: Mapping[str, str] | None = None) -> None:
         path = Path(path)
+        self.custom_data = dict(custom_data or {})
         self.folder: Path | None = None if path.suffix == '.mcap' else path
         self.mcap_path = mcap_path_of(path)
         self._stream = open(self.mcap_path, 'wb')
@@ -163,7 +170,7 @@ class BagWriter:
 
     def metadata(self) -> dict[str, Any]:
         return bag_metadata(file_name=self.mcap_path.name, topics=list(self._topics.values()),
-                            start_ns=self._start, end_ns=self._end)
+                            start_ns=self._start, end_ns=self._end, custom_data=self.custom_data)
 
     def close(self) -> None:
         """Finish the MCAP file (rosbag2 metadata record, summary, footer), then metadata.yaml."""

@@ -50,7 +50,7 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from rclpy.context import Context
@@ -101,9 +101,13 @@ class Recorder(Node):
     def __init__(self, path: str | os.PathLike, *, prefix: str = '/app',
                  context: Context | None = None, node_name: str = 'recorder',
                  scan_period: float = 0.2, depth: int = 1000, compression: str = 'zstd',
-                 flush_period: float = 1.0, exclude: Iterable[str] = ()) -> None:
+                 flush_period: float = 1.0, exclude: Iterable[str] = (),
+                 custom_data: Mapping[str, str] | None = None) -> None:
+        """``custom_data``: kept in the bag's metadata (``custom_data``, as ``ros2 bag record
+        --custom-data`` keeps it)."""
         # the bag first: a path that cannot take a bag fails before any node exists
-        self._bag = BagProcess(path, compression=compression, library='itasc_bringup.recording (mcap python)')
+        self._bag = BagProcess(path, compression=compression, library='itasc_bringup.recording (mcap python)',
+                               custom_data=custom_data)
         super().__init__(node_name, context=context)
         self.path = os.fspath(path)
         self.prefix = prefix

@@ -26,7 +26,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -46,12 +46,14 @@ _MAIN = 'import sys; from itasc_bringup.recording.writer import main; sys.exit(m
 class BagProcess:
     """The recording process's side: a bag written by a process of its own."""
 
-    def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup') -> None:
+    def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup',
+                 custom_data: Mapping[str, str] | None = None) -> None:
         from .bag import mcap_path_of
         mcap_path_of(Path(path))  # BagExists, and the folder made, here: before anything starts
+        custom = [arg for key, value in (custom_data or {}).items() for arg in ('--custom-data', f'{key}={value}')]
         self._process = subprocess.Popen(
-            [sys.executable, '-c', _MAIN, os.fspath(path), '--compression', compression, '--library', library],
-            stdin=subprocess.PIPE, start_new_session=True)
+            [sys.executable, '-c', _MAIN, os.fspath(path), '--compression', compression, '--library', library,
+             *custom], stdin=subprocess.PIPE, start_new_session=True)
         self._fd = self._process.stdin.fileno()
         self._queue: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
         self._sender = threading.Thread(target=self._send, name='recording writer', daemon=True)
@@ -156,9 +158,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('path')
     parser.add_argument('--compression', default='zstd')
     parser.add_argument('--library', default='itasc_bringup')
+    parser.add_argument('--custom-data', action='append', default=[], metavar='KEY=VALUE')
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the recording process closes the bag, or its end does
-    bag = BagWriter(args.path, compression=args.compression, library=args.library)
+    bag = BagWriter(args.path, compression=args.compression, library=args.library,
+                    custom_data=dict(item.split('=', 1) for item in args.custom_data))
     channels: dict[int, int] = {}
     flushed = time.monotonic()
     try:

@@ -111,8 +111,16 @@ def _print_differences(plan: Plan, ticks: list[float], recording: Recording, rep
 
 
 def _app_of(bag: Path) -> str:
-    from .recording import topic_names
+    """The model file the bag was recorded from (its custom_data), else the application its topics
+    are named after."""
+    from ..recording.bag import APPLICATION_KEY
+    from .recording import custom_data, topic_names
 
+    recorded = custom_data(bag).get(APPLICATION_KEY)
+    if recorded:
+        if not Path(recorded).is_file():
+            raise ReplayError(f'{bag} was recorded from {recorded}, which is not here; give --app')
+        return recorded
     names = {t.split('/')[1] for t in topic_names(bag) if t.count('/') >= 2}
     if len(names) != 1:
         raise ReplayError(f'{bag}: cannot tell the application from its topics ({sorted(names)}); give --app')

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 __all__ = ['ReplayError', 'Recording', 'RecordedEvent', 'RecordedState', 'read_recording', 'nanoseconds',
-           'topic_names', 'message_class', 'is_stamped']
+           'topic_names', 'custom_data', 'message_class', 'is_stamped']
 
 
 class ReplayError(Exception):
@@ -114,6 +114,25 @@ def _tick_of(index: dict[int, int], msg) -> int | None:
 
 def _files(bag: Path) -> list[Path]:
     return sorted(bag.glob('*.mcap')) if bag.is_dir() else [bag]
+
+
+def custom_data(bag: Path) -> dict[str, str]:
+    """The bag's ``custom_data`` (rosbag2's metadata, kept in its MCAP files' ``rosbag2`` record;
+    empty for a recording that was never closed)."""
+    import yaml
+    from mcap.reader import make_reader
+
+    data: dict[str, str] = {}
+    try:
+        for file in _files(bag):
+            with file.open('rb') as stream:
+                for record in make_reader(stream).iter_metadata():
+                    if record.name == 'rosbag2' and 'serialized_metadata' in record.metadata:
+                        info = yaml.safe_load(record.metadata['serialized_metadata']) or {}
+                        data.update(info.get('custom_data') or {})
+    except Exception:  # noqa: BLE001 - no metadata to be had: what topic_names says about the bag follows
+        return {}
+    return data
 
 
 def topic_names(bag: Path) -> list[str]:
