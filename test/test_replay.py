@@ -130,6 +130,21 @@ def test_a_run_of_a_model_file_of_ones_own_replays_without_naming_it_again(tmp_p
     assert _largest(out, 'command') <= 1e-9, out
 
 
+def test_a_run_recorded_with_a_process_per_composite_says_the_replay_cannot_reproduce_it(tmp_path):
+    """Such a run's data crossed DDS between processes, at times a tick late; the replay runs the
+    program in one process and says so, rather than leaving the user with unexplained differences."""
+    bag = tmp_path / 'spread'
+    with Spawned([*BOOTSTRAP, 'approach_object', '--deploy', 'per-composite', '--duration', '2',
+                  '--record', str(bag)]) as app:
+        assert app.finish(timeout=120) == 0, app.output()
+    metadata = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert metadata['custom_data']['itasc.deploy'] == 'per-composite'
+    code, out = _replay(bag)
+    assert code in (0, 1), out
+    assert re.search(r'^note: recorded with --deploy per-composite: .* record with --deploy single\.$', out,
+                     re.M), out
+
+
 def test_a_file_that_is_not_a_bag_is_a_clear_error(tmp_path):
     bad = tmp_path / 'notes.mcap'
     bad.write_text('not a bag')

@@ -158,11 +158,12 @@ def main(argv: list[str] | None = None) -> int:
             from itasc_core.communication.qos import EVENT_QOS, STATE_QOS
 
             from .apps import resolve_app
-            from .recording.bag import APPLICATION_KEY, BagExists
+            from .recording.bag import APPLICATION_KEY, DEPLOY_KEY, BagExists
             from .recording.recorder import Recorder
             try:  # the model file goes into the bag: itasc-replay finds it there
                 recorder = Recorder(path=args.record, prefix=root.namespace,
-                                    custom_data={APPLICATION_KEY: str(resolve_app(args.app).resolve())})
+                                    custom_data={APPLICATION_KEY: str(resolve_app(args.app).resolve()),
+                                                 DEPLOY_KEY: args.deploy})
             except BagExists as err:
                 print(f'error: --record: {err}', file=sys.stderr)
                 return 2

@@ -29,10 +29,12 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from .definitions import definition, type_hash
 
 __all__ = ['BagWriter', 'BagExists', 'bag_metadata', 'qos_profiles', 'mcap_path_of', 'METADATA_VERSION', 'ROS_DISTRO',
-           'APPLICATION_KEY']
+           'APPLICATION_KEY', 'DEPLOY_KEY']
 
 #: The key of a bag's ``custom_data`` that holds the application model file it was recorded from.
 APPLICATION_KEY = 'itasc.application'
+#: ... and the one that holds how it was deployed (``single`` or ``per-composite``).
+DEPLOY_KEY = 'itasc.deploy'
 #: The metadata version rosbag2 Jazzy writes.
 METADATA_VERSION = 9
 ROS_DISTRO = 'jazzy'

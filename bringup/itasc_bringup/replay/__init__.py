@@ -46,8 +46,9 @@ if TYPE_CHECKING:
 __all__ = ['main', 'replay', 'ReplayError']
 
 
-def replay(bag: Path, app: str, *, tolerance: float) -> int:
-    """Replay ``bag`` with the model of ``app`` and print the differences; the exit code."""
+def replay(bag: Path, app: str, *, tolerance: float, deploy: str | None = None) -> int:
+    """Replay ``bag`` (recorded with ``--deploy deploy``, if known) with the model of ``app`` and
+    print the differences; the exit code."""
     from itasc_core.composition.model import walk
 
     from ..apps import load_composition
@@ -64,6 +65,11 @@ def replay(bag: Path, app: str, *, tolerance: float) -> int:
     ticks = [t * 1e-9 for t in recording.ticks]
     span = ticks[-1] - ticks[0]
     print(f'{bag}: {model.name}, {len(ticks)} ticks from t={ticks[0]:.3f} s to {ticks[-1]:.3f} s ({span:.2f} s)')
+    if deploy == 'per-composite':
+        print('note: recorded with --deploy per-composite: its composites computed in processes of their own and '
+              'their data crossed DDS, at times a tick late; the replay runs the program in one process (as '
+              '--deploy single), so it does not reproduce such a run to round-off. For a regression test, record '
+              'with --deploy single.')
     replayed = replay_programs(plan, recording)
     print(f'{len(ticks)} ticks replayed in {replayed.seconds:.2f} s ({span / replayed.seconds:.1f}x real time)')
     _print_paths(states, recording, replayed)
@@ -138,7 +144,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not args.bag.exists():
             raise ReplayError(f'{args.bag}: no such bag')
-        return replay(args.bag, args.app or _app_of(args.bag), tolerance=args.tolerance)
+        from ..recording.bag import DEPLOY_KEY
+        from .recording import custom_data
+        return replay(args.bag, args.app or _app_of(args.bag), tolerance=args.tolerance,
+                      deploy=custom_data(args.bag).get(DEPLOY_KEY))
     except (ModelError, ReplayError) as err:
         print(f'error: {err}', file=sys.stderr)
         return 2
