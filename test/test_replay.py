@@ -124,7 +124,7 @@ def test_a_run_of_a_model_file_of_ones_own_replays_without_naming_it_again(tmp_p
     with Spawned([*BOOTSTRAP, str(model), '--duration', '3', '--record', str(bag)]) as app:
         assert app.finish(timeout=120) == 0, app.output()
     metadata = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    assert metadata['custom_data'] == {'itasc.application': str(model.resolve())}
+    assert metadata['custom_data'] == {'itasc.application': str(model.resolve()), 'itasc.deploy': 'single'}
     code, out = _replay(bag)
     assert code == 0, out
     assert _largest(out, 'command') <= 1e-9, out
