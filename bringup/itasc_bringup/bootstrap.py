@@ -113,6 +113,11 @@ def load(app: str, rate: float | None):
 def main(argv: list[str] | None = None) -> int:
     with contextlib.suppress(io.UnsupportedOperation):  # stderr without a file (main() called in a test)
         faulthandler.register(signal.SIGUSR1, all_threads=True)  # `kill -USR1 <pid>`: where is it stuck?
+    # From the start: a Ctrl-C during the imports and the model's validation (the first second) is
+    # a stop like any other, not a KeyboardInterrupt traceback
+    stop_requested: list[str] = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _frame: stop_requested.append('signal ' + signal.Signals(signum).name))
     args = parse_args(argv)
     model = load(args.app, args.rate)
 
@@ -136,9 +141,9 @@ def main(argv: list[str] | None = None) -> int:
     from .console import RunFacts, TraceFile, Watch, task_specs
     from .outcome import EXIT_ERROR, RunOutcome
 
-    stop_requested: list[str] = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, _frame: stop_requested.append('signal ' + signal.Signals(signum).name))
+    if stop_requested:  # nothing started yet
+        print(f'{model.name}: stopped ({stop_requested[0]}) before the bring-up began - exit 0')
+        return 0
 
     started = time.monotonic()
     age = process_age()  # the interpreter's start, the imports and the model's validation

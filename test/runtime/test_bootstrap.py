@@ -82,6 +82,28 @@ def test_ctrl_c_leads_to_an_orderly_stop_and_exit_0(deploy):
         assert sequences.get(composite, [''])[-1] == 'Active.Stop.Stopped.NotifyStopped', app.output()
 
 
+#: The bootstrap, with a Ctrl-C arriving while it validates the model (the first second of a start:
+#: imports and validation), at a point the test controls.
+CTRL_C_WHILE_LOADING = ('import os, signal, sys\n'
+                        'from itasc_bringup import bootstrap\n'
+                        'load = bootstrap.load\n'
+                        'def interrupted(*args):\n'
+                        '    os.kill(os.getpid(), signal.SIGINT)\n'
+                        '    return load(*args)\n'
+                        'bootstrap.load = interrupted\n'
+                        'sys.exit(bootstrap.main(sys.argv[1:]))\n')
+
+
+def test_ctrl_c_before_the_bring_up_stops_it_without_a_traceback():
+    """Before, a Ctrl-C in the first second ended the process with a KeyboardInterrupt traceback
+    from wherever the imports were."""
+    result = subprocess.run([sys.executable, '-c', CTRL_C_WHILE_LOADING, 'pattern_demo', '--duration', '5'],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.strip().splitlines()[-1] == 'app: stopped (signal SIGINT) before the bring-up began - exit 0'
+    assert 'Traceback' not in result.stderr and '[state]' not in result.stdout, result.stdout + result.stderr
+
+
 def test_unknown_application_exits_2_without_traceback():
     result = run('no_such_app')
     assert result.returncode == 2
