@@ -128,6 +128,20 @@ def test_a_run_of_a_model_file_of_ones_own_replays_without_naming_it_again(tmp_p
     code, out = _replay(bag)
     assert code == 0, out
     assert _largest(out, 'command') <= 1e-9, out
+    shutil.rmtree(tmp_path / 'config')  # the bag taken elsewhere: no file, and no application of that name
+    code, out = _replay(bag)
+    assert code == 2 and f'was recorded from {model.resolve()}, which is not here, and no application is named ' \
+        "'my_cell'; give --app" in out, out
+
+
+def test_a_run_of_a_shipped_application_from_a_copy_that_is_gone_replays_by_its_name(tmp_path):
+    model = _changed_model(tmp_path, 'apps/approach_object.yaml', 'rate: 100', 'rate: 100')  # a copy as it is
+    bag = tmp_path / 'copy'
+    with Spawned([*BOOTSTRAP, str(model), '--duration', '2', '--record', str(bag)]) as app:
+        assert app.finish(timeout=120) == 0, app.output()
+    shutil.rmtree(tmp_path / 'config')
+    code, out = _replay(bag)
+    assert code == 0 and _largest(out, 'command') <= 1e-9, out
 
 
 def test_a_run_recorded_with_a_process_per_composite_says_the_replay_cannot_reproduce_it(tmp_path):

@@ -117,20 +117,28 @@ def _print_differences(plan: Plan, ticks: list[float], recording: Recording, rep
 
 
 def _app_of(bag: Path) -> str:
-    """The model file the bag was recorded from (its custom_data), else the application its topics
-    are named after."""
+    """The model file the bag was recorded from (its custom_data), else (a bag from elsewhere, or
+    without it) the application its topics are named after."""
+    from itasc_core.composition.loader import ModelError
+
+    from ..apps import resolve_app
     from ..recording.bag import APPLICATION_KEY
     from .recording import custom_data, topic_names
 
     recorded = custom_data(bag).get(APPLICATION_KEY)
-    if recorded:
-        if not Path(recorded).is_file():
-            raise ReplayError(f'{bag} was recorded from {recorded}, which is not here; give --app')
+    if recorded and Path(recorded).is_file():
         return recorded
     names = {t.split('/')[1] for t in topic_names(bag) if t.count('/') >= 2}
     if len(names) != 1:
         raise ReplayError(f'{bag}: cannot tell the application from its topics ({sorted(names)}); give --app')
-    return names.pop()
+    name = names.pop()
+    if recorded:
+        try:
+            resolve_app(name)
+        except ModelError:
+            raise ReplayError(f'{bag} was recorded from {recorded}, which is not here, and no application is '
+                              f'named {name!r}; give --app') from None
+    return name
 
 
 def main(argv: list[str] | None = None) -> int:
