@@ -151,6 +151,8 @@ def _draw(ax, tree: _Tree, markers, stamp, *, tool: str, title: str,
             c = frame[:3, 3]
             ax.plot_wireframe(c[0] + r * np.cos(u) * np.sin(v), c[1] + r * np.sin(u) * np.sin(v),
                               c[2] + r * np.cos(v), color=colour, alpha=max(marker.color.a, 0.3), linewidth=0.6)
+    # on top of everything, whatever its depth (a translucent target sphere around it would tint it)
+    ax.computed_zorder = False
     ax.scatter(*world[tool], color=TOOL_COLOUR, s=60, depthshade=False, zorder=10)
     centre, half = view
     ax.set_xlim(centre[0] - half, centre[0] + half)
