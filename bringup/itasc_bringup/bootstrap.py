@@ -193,6 +193,12 @@ def main(argv: list[str] | None = None) -> int:
         waits = Waits(model)
 
         def on_transition(transition) -> None:
+            nonlocal running_since
+            # when the root was seen Running, in the order the transitions came: a Safety seen after
+            # it is a fault while running, not a failed start, however late the housekeeping looks
+            if running_since is None and transition.composite == root.name \
+                    and transition.state.startswith('Active.Run.Running'):
+                running_since = time.monotonic()
             outcome.saw_state(transition.composite, transition.state)
             console.on_transition(transition)
             waits.on_transition(transition)
