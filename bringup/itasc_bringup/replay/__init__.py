@@ -116,16 +116,14 @@ def _print_differences(plan: Plan, ticks: list[float], recording: Recording, rep
     return max(worst.values(), default=0.0)
 
 
-def _app_of(bag: Path) -> str:
-    """The model file the bag was recorded from (its custom_data), else (a bag from elsewhere, or
-    without it) the application its topics are named after."""
+def _app_of(bag: Path, *, recorded: str | None) -> str:
+    """The model file the bag was ``recorded`` from (its custom_data), else (a bag from elsewhere,
+    or without it) the application its topics are named after."""
     from itasc_core.composition.loader import ModelError
 
     from ..apps import resolve_app
-    from ..recording.bag import APPLICATION_KEY
-    from .recording import custom_data, topic_names
+    from .recording import topic_names
 
-    recorded = custom_data(bag).get(APPLICATION_KEY)
     if recorded and Path(recorded).is_file():
         return recorded
     names = {t.split('/')[1] for t in topic_names(bag) if t.count('/') >= 2}
@@ -152,10 +150,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not args.bag.exists():
             raise ReplayError(f'{args.bag}: no such bag')
-        from ..recording.bag import DEPLOY_KEY
+        from ..recording.bag import APPLICATION_KEY, DEPLOY_KEY
         from .recording import custom_data
-        return replay(args.bag, args.app or _app_of(args.bag), tolerance=args.tolerance,
-                      deploy=custom_data(args.bag).get(DEPLOY_KEY))
+        recorded = custom_data(args.bag)
+        return replay(args.bag, args.app or _app_of(args.bag, recorded=recorded.get(APPLICATION_KEY)),
+                      tolerance=args.tolerance, deploy=recorded.get(DEPLOY_KEY))
     except (ModelError, ReplayError) as err:
         print(f'error: {err}', file=sys.stderr)
         return 2
