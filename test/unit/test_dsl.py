@@ -247,6 +247,8 @@ BROKEN = [
      "duplicate task name 'Approach'"),
     ('robot and object of one name', _set(P + 'objects[1].name', 'panda'), P + 'objects[1].name',
      'duplicate robot or object'),
+    ('position of two values', _set(P + 'objects[0].xyz', [0.5, 0.1]), P + 'objects[0].xyz',
+     'expected at least 3 values, got 2 ([0.5, 0.1])'),
     ('duplicate object frames', _set(P + 'objects[0].frames', [{'name': 'grasp'}, {'name': 'grasp'}]),
      P + 'objects[0].frames[1].name', "duplicate frame"),
     ('task named like an entity', _set(P + 'tasks[2].name', 'Solver'), P + 'tasks[2].name', "'Solver' is reserved"),

@@ -275,8 +275,14 @@ def _first_error(err: ValidationError, sources: dict[Loc, Path], at: Loc) -> Mod
         got = detail['input'].get(ctx['field']) if isinstance(detail['input'], dict) else None
         message = 'required field is missing' if got is None else \
             f"unknown {ctx['what']} {got!r}; known: {ctx['known']}"
+    given = detail.get('input')
+    missing_at = detail['loc'][-1] if detail['type'] == 'missing' and isinstance(given, list) else None
+    if isinstance(missing_at, int):  # a fixed-length list (xyz, rpy) of too few values: the list is wrong
+        loc = loc[:-1]
     path, inner = source_of(loc, sources)
-    if detail['type'] == 'missing':
+    if isinstance(missing_at, int) and isinstance(given, list):
+        message = f'expected at least {missing_at + 1} values, got {len(given)} ({given})'
+    elif detail['type'] == 'missing':
         message = 'required field is missing'
     elif detail['type'] == 'extra_forbidden':
         message = 'unknown field (not part of the model)'
