@@ -375,3 +375,39 @@ def test_a_dump_becomes_the_named_configuration_that_sets_it():
         'tracking_error': {'threshold': 0.05}}
     with pytest.raises(ValueError, match='/app/itasc/Solver: a named configuration sets'):
         configuration_of({'/app/itasc/Solver': {'ros__parameters': {'kind': 'qp', 'damping': 0.1}}})
+
+
+def test_a_monitor_switched_on_by_its_event_stays_on_when_its_threshold_is_tuned():
+    """Whether a Monitor runs is the Running sub-FSM's (its ``enable_on``/``disable_on`` events);
+    ``enabled`` is only how it starts, or an operator's explicit switch. Before, every parameter
+    change re-applied ``enabled``: a threshold tuned while the FSM had switched the Monitor on
+    switched it off again (approach_object's ``converged`` tuned in ``hold``: the program never
+    left ``hold``)."""
+    from sensor_msgs.msg import JointState
+    from itasc_core.communication.ports import PortSpec
+    from itasc_core.computation.monitor import Monitor
+    watch = PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
+                     semantics='JointPositions(arm)', id='/changes/T/Driver/joint_state')
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    monitor = Monitor('far', composite=TASK, watch=watch, parameters={
+        'field': 'position[0]', 'condition': 'above', 'threshold': 1.0, 'event': 'e_far',
+        'enabled': False, 'enable_on': ['e_go'], 'disable_on': ['e_halt']})
+    try:
+        monitor.raise_event('e_go')
+        spin(monitor, until=lambda: len(monitor._events) > 0)
+        monitor.update(0.0)  # takes the switch
+        (result,) = monitor.set_parameters([Parameter('threshold', value=0.5)])
+        assert result.successful, result.reason
+        monitor.watch.deliver(JointState(name=['a'], position=[0.7]), 'test')
+        monitor.update(0.01)
+        assert monitor.raised == 1  # on, with the new threshold
+        (result,) = monitor.set_parameters([Parameter('enabled', value=False)])  # an operator's switch
+        assert result.successful, result.reason
+        monitor.watch.deliver(JointState(name=['a'], position=[0.2]), 'test')
+        monitor.update(0.02)
+        monitor.watch.deliver(JointState(name=['a'], position=[0.9]), 'test')
+        monitor.update(0.03)
+        assert monitor.raised == 1  # off: the condition starting to hold again raised nothing
+    finally:
+        monitor.destroy_node()
+        rclpy.try_shutdown()

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 from pydantic import Field
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.parameter import Parameter
 
 from ..communication.ports import InputPort, PortSpec
 from ..entity import CompositeContext
@@ -63,7 +65,8 @@ class Monitor(FunctionalEntity):
         event: str = Field(default='e_monitor', pattern=r'^e_[A-Za-z0-9_]+$', frozen=True)
         """The event it raises once the condition starts to hold."""
         enabled: bool = True
-        """Whether it runs from the start."""
+        """Whether it runs from the start; set while it runs, an operator's switch (until the next
+        switching event)."""
         enable_on: list[str] = Field(default_factory=list, frozen=True)
         """The events that switch it on."""
         disable_on: list[str] = Field(default_factory=list, frozen=True)
@@ -97,17 +100,30 @@ class Monitor(FunctionalEntity):
         self.condition_name = params.condition
         #: a condition on the arrival of data: its timeout also tells a pause of this process
         self._timeout: float | None = getattr(params, 'timeout', None)
-        self.enabled = params.enabled
+        if not hasattr(self, 'enabled'):  # how it starts; then the FSM's events switch it (see _check_parameters)
+            self.enabled = params.enabled
         self.event = params.event
         self.field = params.field
         self._on = set(params.enable_on)
         self._off = set(params.disable_on)
 
+    def _check_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """Another threshold leaves the Monitor on or off as the FSM switched it; ``enabled`` set
+        explicitly switches it."""
+        result = super()._check_parameters(parameters)
+        switch = [bool(p.value) for p in parameters if p.name == 'enabled']
+        if result.successful and switch:
+            self._set_enabled(switch[-1])
+        return result
+
     def _switches(self, name: str) -> bool:
         return name in self._on or name in self._off
 
     def _switch(self, msg) -> None:
-        self.enabled = msg.name in self._on
+        self._set_enabled(msg.name in self._on)
+
+    def _set_enabled(self, on: bool) -> None:
+        self.enabled = on
         self._holding = False
         self._since = None
 
