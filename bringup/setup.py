@@ -44,6 +44,7 @@ setup(
         'console_scripts': [
             'bootstrap = itasc_bringup.bootstrap:main',
             'itasc-plot = itasc_bringup.plot:main',
+            'itasc-foxglove = itasc_bringup.visualization.layout:main',
             'itasc-graph = itasc_bringup.graph:main',
             'itasc-replay = itasc_bringup.replay:main',
             'itasc-recover = itasc_bringup.recording.recover:main',

@@ -19,7 +19,7 @@ def test_ament_index_has_package(package):
     assert os.path.isfile(os.path.join(get_package_share_directory(package), 'package.xml'))
 
 
-@pytest.mark.parametrize('executable', ['bootstrap', 'itasc-plot', 'itasc-graph'])
+@pytest.mark.parametrize('executable', ['bootstrap', 'itasc-plot', 'itasc-graph', 'itasc-foxglove'])
 def test_bringup_executables_installed(repo_root, executable):
     path = repo_root / 'install' / 'itasc_bringup' / 'lib' / 'itasc_bringup' / executable
     assert path.is_file(), f'{path} missing: run make setup'

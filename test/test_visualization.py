@@ -38,9 +38,13 @@ def recording(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope='module')
 def messages(recording) -> dict[str, list]:
+    return _read(recording)
+
+
+def _read(mcap: Path) -> dict[str, list]:
     """topic -> [(log time ns, message)], in order."""
     out: dict[str, list] = defaultdict(list)
-    with AnyReader([recording]) as reader:
+    with AnyReader([mcap]) as reader:
         for connection, stamp, raw in reader.messages():
             out[connection.topic].append((stamp, reader.deserialize(raw, connection.msgtype)))
     return out
@@ -292,6 +296,11 @@ def _layout() -> dict:
     return json.loads(LAYOUT.read_text(encoding='utf-8'))
 
 
+def _generated(app: str | Path) -> dict:
+    from itasc_bringup.visualization.layout import foxglove_layout
+    return foxglove_layout(load_application(resolve_app(str(app))))
+
+
 def _mosaic_leaves(node) -> list[str]:
     """The panel ids of a react-mosaic tree, checking its inner nodes."""
     if isinstance(node, str):
@@ -318,8 +327,15 @@ def _field(message, path: str):
     return value
 
 
-def test_the_foxglove_layout_is_a_foxglove_layout():
-    layout = _layout()
+def test_the_shipped_layout_is_the_one_itasc_foxglove_makes():
+    """``config/foxglove/approach_object.json`` is ``itasc-foxglove approach_object``'s output (made,
+    not written by hand: it cannot drift from the application's topics)."""
+    assert _layout() == _generated(APP)
+
+
+@pytest.mark.parametrize('app', ['approach_object', 'pick_and_retreat', 'pick_with_gripper', 'mobile_manipulator'])
+def test_the_foxglove_layout_is_a_foxglove_layout(app):
+    layout = _generated(app)
     assert set(layout) <= {'configById', 'layout', 'globalVariables', 'userNodes', 'playbackConfig',
                            'linkedGlobalVariables'}
     assert {'configById', 'layout'} <= set(layout)
@@ -349,7 +365,10 @@ def test_the_foxglove_layout_is_a_foxglove_layout():
 def test_every_topic_and_field_of_the_foxglove_layout_is_in_the_recording(messages):
     """What the layout's panels subscribe to is what a recording of the application holds, with the
     message types those panels draw, and every plotted field exists and has the right kind."""
-    layout = _layout()
+    _check_layout_against(_layout(), messages, app=APP)
+
+
+def _check_layout_against(layout: dict, messages: dict[str, list], *, app: str) -> None:
     types = {topic: entries[-1][1].__msgtype__ for topic, entries in messages.items()}
     used = []
     for panel, config in layout['configById'].items():
@@ -374,7 +393,7 @@ def test_every_topic_and_field_of_the_foxglove_layout_is_in_the_recording(messag
             assert isinstance(value, str) and value, (path, value)
         used.append(topic)
     # the 3-D panel draws TF without being told; the layout shows the markers, the Tasks, the health
-    assert f'/{APP}/markers' in used and '/diagnostics' in used and '/tf' in messages
+    assert f'/{app}/markers' in used and '/diagnostics' in used and '/tf' in messages
 
 
 def test_a_burst_of_transitions_is_published_together_and_the_last_array_holds_every_final_state():
@@ -440,13 +459,10 @@ ARM = """<?xml version="1.0"?>
 """
 
 
-def test_the_scene_pictures_of_other_robots_mark_the_frame_the_first_task_moves(tmp_path):
-    """Not a Panda (no panda_hand_tcp), two of them (each robot's TF has stamps of its own), far
-    from the origin: the blue dot is the first Task's o2 where forward kinematics puts it."""
-    from PIL import Image
-
-    from itasc_bringup.visualization.picture import render_scene
-
+@pytest.fixture(scope='module')
+def arm_run(tmp_path_factory) -> Path:
+    """A 2 s recording of ``arm_reach``: not a Panda, two robots far from the origin."""
+    tmp_path = tmp_path_factory.mktemp('arm')
     (tmp_path / 'arm.urdf').write_text(ARM, encoding='utf-8')
     (tmp_path / 'other.urdf').write_text(ARM.replace('name="j', 'name="b_j'), encoding='utf-8')
     (tmp_path / 'arm.yaml').write_text(f"""
@@ -475,6 +491,31 @@ application:
     result = subprocess.run([*BOOTSTRAP, str(tmp_path / 'arm.yaml'), '--duration', '2', '--record', str(mcap)],
                             capture_output=True, text=True, timeout=180)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return mcap
+
+
+def test_the_foxglove_layout_of_another_application_shows_its_own_topics(arm_run):
+    """``itasc-foxglove`` for a model file of one's own: every panel's topic and field is in that
+    application's recording (the shipped layout names approach_object's topics only)."""
+    out = arm_run.parent / 'layout.json'
+    result = subprocess.run([sys.executable, '-m', 'itasc_bringup.visualization.layout',
+                             str(arm_run.parent / 'arm.yaml'), '-o', str(out)],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    layout = json.loads(out.read_text(encoding='utf-8'))
+    _check_layout_against(layout, _read(arm_run), app='arm_reach')
+    camera = layout['configById']['3D!itasc']['cameraState']  # on the robots at x = 2 m, not the origin
+    assert camera['targetOffset'] == [2.15, 0.0, 0.35] and camera['distance'] > 3.0
+
+
+def test_the_scene_pictures_of_other_robots_mark_the_frame_the_first_task_moves(arm_run, tmp_path):
+    """Not a Panda (no panda_hand_tcp), two of them (each robot's TF has stamps of its own), far
+    from the origin: the blue dot is the first Task's o2 where forward kinematics puts it."""
+    from PIL import Image
+
+    from itasc_bringup.visualization.picture import render_scene
+
+    mcap = arm_run
     drawn = render_scene(mcap, tmp_path / 'scene', gif=False)
     assert drawn and drawn[-1].path.name == 'scene_end.png'
     model = pin.buildModelFromXML(ARM)
