@@ -49,15 +49,20 @@ def _measured(adapter) -> np.ndarray:
     return np.array(state.position)
 
 
-@pytest.mark.parametrize('interface', ['velocity', 'position', 'trajectory'])
-def test_the_adapter_drives_a_separate_ros2_control_driver(ros, interface):
+@pytest.mark.parametrize('interface, state_qos', [
+    ('velocity', 'reliable'), ('position', 'reliable'), ('trajectory', 'reliable'),
+    # joint states best effort (qos_profile_sensor_data, as many drivers and simulators publish): a
+    # reliable reader never matched them, and the robot was silent for the program
+    ('velocity', 'sensor_data')])
+def test_the_adapter_drives_a_separate_ros2_control_driver(ros, interface, state_qos):
     from itasc_core.entity import CompositeContext
     from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
 
     topic = 'joint_trajectory' if interface == 'trajectory' else 'commands'
     driver = [sys.executable, '-m', 'itasc_drivers.fake_ros2_control', '--interface', interface,
               '--controller', 'arm_controller', '--joints', ','.join(JOINTS),
-              '--initial', ','.join(map(str, INITIAL)), '--joint-states', '/robot/joint_states', '--rate', '200']
+              '--initial', ','.join(map(str, INITIAL)), '--joint-states', '/robot/joint_states', '--rate', '200',
+              '--state-qos', state_qos]
     adapter = Ros2ControlAdapter('Driver_arm', composite=CompositeContext(name='test', namespace='/test'), parameters={
         'robot': 'arm', 'joints': JOINTS, 'joint_states_topic': '/robot/joint_states',
         'command_topic': f'/arm_controller/{topic}', 'interface': interface, 'horizon': 2.0 / RATE})

@@ -419,13 +419,16 @@ def test_a_driver_watchdog_does_not_count_the_time_its_process_did_not_run(world
     assert monitor.raised == 1 and 0.25 <= time.monotonic() - silent_since < 0.4
 
 
-def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
+@pytest.mark.parametrize('qos', ['reliable', 'sensor_data'])  # a localisation publishing best effort, too
+def test_scene_takes_a_moving_object_pose_from_a_sensor(world, qos):
+    from rclpy.qos import qos_profile_sensor_data
     sensor = world.entity(PoseSensor, 'Sensor_cup', object='cup', topic=f'{world.ctx.namespace}/cup_pose')
     scene = world.entity(SceneEntity, 'Scene', robots={'panda': {'urdf': URDF}}, objects={'cup': {'sensed': True}},
                          relations={'Look': {'o1': 'world', 'o2': 'cup'}})
     link(sensor, 'pose', scene, 'pose_cup')
     scene.inputs['joint_state_panda'].deliver(as_sample(JointState(name=PANDA, position=PANDA_READY)), 'robot')
-    publisher = world.observer.create_publisher(PoseStamped, f'{world.ctx.namespace}/cup_pose', 10)
+    publisher = world.observer.create_publisher(PoseStamped, f'{world.ctx.namespace}/cup_pose',
+                                                qos_profile_sensor_data if qos == 'sensor_data' else 10)
     pose = PoseStamped()
     pose.header.frame_id = 'world'
     pose.pose.position.x, pose.pose.orientation.w = 0.7, 1.0
@@ -436,6 +439,20 @@ def test_scene_takes_a_moving_object_pose_from_a_sensor(world):
     scene.update(0.0)
     relation = scene.outputs['relation_Look'].last
     assert relation.value[:3] == pytest.approx([0.7, 0.0, 0.0])
+
+
+def test_a_topic_setpoint_published_best_effort_reaches_the_setpoint_generator(world):
+    """A setpoint stream from another program (a teleoperation or a planner publishing best
+    effort, ``qos_profile_sensor_data``): a reliable reader never matched it."""
+    from rclpy.qos import qos_profile_sensor_data
+    topic = f'{world.ctx.namespace}/target'
+    spg = world.entity(SetpointGeneratorEntity, 'SPG', task='T', tick_period=DT, kind='topic', topic=topic,
+                       outputs=['x'])
+    publisher = world.observer.create_publisher(Float64MultiArray, topic, qos_profile_sensor_data)
+    assert world.spin_until(lambda: publisher.get_subscription_count() > 0)
+    publisher.publish(Float64MultiArray(data=[0.42]))
+    assert world.spin_until(lambda: spg.generator.value is not None)
+    assert list(spg.generator.value) == [0.42]
 
 
 # -- the ROS 2 driver adapter against a driver that speaks only standard messages ----------------------------

@@ -12,6 +12,8 @@ follows what it receives:
   the whole message, as the JointTrajectoryController does); it moves at constant velocity to the
   first point, reaching it ``time_from_start`` after receipt, and stays there.
 
+``--state-qos sensor_data``: joint states best effort, as many drivers and simulators publish them.
+
 Used to test the Ros2ControlAdapter Driver (paper §4.2: the same program on other hardware by
 swapping the Driver). Run: ``fake_ros2_control [--controller velocity_controller] [--rate 200]``.
 """
@@ -24,6 +26,7 @@ import time
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
@@ -40,7 +43,7 @@ class FakeRos2Control(Node):
     """joint_state_broadcaster + a joint group controller, kinematically simulated."""
 
     def __init__(self, *, joints: list[str], initial: list[float], extra_joint: str, controller: str,
-                 interface: str, rate: float, joint_states: str) -> None:
+                 interface: str, rate: float, joint_states: str, state_qos: QoSProfile | int = 10) -> None:
         super().__init__('fake_ros2_control')
         self.joints = list(joints)
         self.positions = dict(zip(joints, initial))
@@ -48,7 +51,7 @@ class FakeRos2Control(Node):
         self.extra_joint = extra_joint
         self.interface = interface
         self.commands_received = 0
-        self._publisher = self.create_publisher(JointState, joint_states, 10)
+        self._publisher = self.create_publisher(JointState, joint_states, state_qos)
         if interface == 'trajectory':
             self.create_subscription(JointTrajectory, f'/{controller}/joint_trajectory', self._on_trajectory, 10)
         else:
@@ -109,6 +112,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--interface', default='velocity', choices=('velocity', 'position', 'trajectory'))
     parser.add_argument('--rate', type=float, default=200.0)
     parser.add_argument('--joint-states', default='/joint_states')
+    parser.add_argument('--state-qos', default='reliable', choices=('reliable', 'sensor_data'),
+                        help="the joint states' QoS: reliable (joint_state_broadcaster's) or sensor_data "
+                             '(best effort, as many drivers and simulators publish)')
     args = parser.parse_args(argv)
     joints = args.joints.split(',')
     initial = [float(v) for v in args.initial.split(',')]
@@ -118,7 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init()
     node = FakeRos2Control(joints=joints, initial=initial, extra_joint=args.extra_joint,
                            controller=args.controller, interface=args.interface, rate=args.rate,
-                           joint_states=args.joint_states)
+                           joint_states=args.joint_states,
+                           state_qos=qos_profile_sensor_data if args.state_qos == 'sensor_data' else 10)
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -10,6 +10,7 @@ from pydantic import Field
 from rclpy.subscription import Subscription
 
 from itasc_core.communication.ports import PortSpec
+from itasc_core.communication.qos import OUTSIDE_QOS
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import ParameterModel
 from itasc_core.itasc.entities.scene_entity import object_pose
@@ -33,7 +34,7 @@ class PoseSensor(FunctionalEntity):
                          semantics=object_pose(params.object))]
 
     def configure(self, params: Parameters) -> None:
-        subscription = self.subscription_for(self._subscription, PoseStamped, params.topic, self._on_pose, 10)
+        subscription = self.subscription_for(self._subscription, PoseStamped, params.topic, self._on_pose, OUTSIDE_QOS)
         self.let_go(self._subscription, kept=subscription)
         if subscription is not self._subscription:  # another topic: no pose from it yet
             self.latest: PoseStamped | None = None

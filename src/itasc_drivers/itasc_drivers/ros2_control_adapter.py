@@ -39,6 +39,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from itasc_core.communication.event_names import JOINTS_MISSING, event
 from itasc_core.communication.ports import PortSpec
+from itasc_core.communication.qos import OUTSIDE_QOS
 from itasc_core.communication.samples import JointSample
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import ParameterModel
@@ -78,7 +79,8 @@ class Ros2ControlAdapter(FunctionalEntity):
         self.joints = list(params.joints)
         self.robot, self.joint_states_topic = params.robot, params.joint_states_topic
         msg_type = JointTrajectory if params.interface == 'trajectory' else Float64MultiArray
-        state_sub = self.subscription_for(self._state_sub, JointState, params.joint_states_topic, self._on_state, 10)
+        state_sub = self.subscription_for(self._state_sub, JointState, params.joint_states_topic, self._on_state,
+                                           OUTSIDE_QOS)
         try:
             publisher = self.publisher_for(self._publisher, msg_type, params.command_topic, 10)
         except BaseException:

@@ -2,12 +2,14 @@
 
 Events must never be lost (paper §7.2: "a buffer must be used to avoid the loss of events"), so
 they travel reliably with a deep history. Data flow is reliable with a
-short queue: a controller wants the newest sample, a recorder wants every one it can get.
+short queue: a controller wants the newest sample, a recorder wants every one it can get. What
+comes from another program (a driver's joint states, a pose, a setpoint topic) is read best effort,
+so that any publisher matches.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ['EVENT_DEPTH', 'EVENT_QOS', 'EVENT_LISTENER_QOS', 'DATA_QOS', 'STATE_QOS']
+__all__ = ['EVENT_DEPTH', 'EVENT_QOS', 'EVENT_LISTENER_QOS', 'DATA_QOS', 'OUTSIDE_QOS', 'STATE_QOS']
 
 #: How many events a writer keeps and a reader holds untaken: a whole storm of issue #8 (10,000
 #: events/s for 10 s). The queues are the buffer of paper §7.2: a reader whose process falls
@@ -45,6 +47,18 @@ DATA_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,
     reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: What a subscription to another program's topic asks for (a driver's joint states, a localisation's
+#: poses, a user's setpoint topic): best effort and volatile, which every publisher matches, reliable
+#: (ros2_control's joint_state_broadcaster) or best effort (``qos_profile_sensor_data``, as many
+#: drivers and simulators publish), transient local or not (REP 2003: subscribe to sensor data with
+#: the sensor data QoS). A reliable reader does not match a best-effort writer: the data never came,
+#: and the silent-driver Monitor went to Safety. The newest value is what is used.
+OUTSIDE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
     durability=DurabilityPolicy.VOLATILE,
 )
 

@@ -38,7 +38,7 @@ from itasc_core.communication.event_names import SAFETY_EVENT
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import Names, ParameterModel
-from itasc_core.communication.qos import DATA_QOS
+from itasc_core.communication.qos import OUTSIDE_QOS
 from itasc_core.communication.samples import Float64Sample
 from itasc_core.itasc.entities.messages import FeaturesSample, SetpointSample
 from itasc_core.kinds import with_kind
@@ -102,7 +102,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
 
     def _subscribe(self, topic: str) -> None:
         current: Subscription | None = getattr(self, '_subscription', None)
-        new = self.subscription_for(current, Float64MultiArray, topic, self._on_value, DATA_QOS) if topic else None
+        new = self.subscription_for(current, Float64MultiArray, topic, self._on_value, OUTSIDE_QOS) if topic else None
         self.let_go(current, kept=new)
         self._subscription = new
 
