@@ -16,9 +16,10 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..model.schema import Application
+if TYPE_CHECKING:
+    from ..model.schema import Application
 
 __all__ = ['foxglove_layout']
 
@@ -36,11 +37,8 @@ def _view(app: Application) -> tuple[list[float], float]:
     return centre, round(max(CAMERA_DISTANCE, 3.0 * half_diagonal), 2)
 
 
-def _path(value: str, label: str | None = None) -> dict[str, Any]:
-    path: dict[str, Any] = {'value': value, 'enabled': True, 'timestampMethod': 'receiveTime'}
-    if label is not None:
-        path['label'] = label
-    return path
+def _path(value: str, label: str) -> dict[str, Any]:
+    return {'value': value, 'enabled': True, 'timestampMethod': 'receiveTime', 'label': label}
 
 
 def foxglove_layout(app: Application) -> dict[str, Any]:
