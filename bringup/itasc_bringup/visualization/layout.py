@@ -46,9 +46,8 @@ def foxglove_layout(app: Application) -> dict[str, Any]:
     root = f'/{app.name}'
     program = f'{root}/{app.program.name}'
     centre, distance = _view(app)
-    errors = [_path(f'{program}/{t.name}/Rows/state.' + ('output[0]' if t.constraint == 'inequality' else 'error_norm'),
-                    f'{t.name} ' + ('value' if t.constraint == 'inequality' else 'error'))
-              for t in app.program.tasks]
+    errors = [_path(f'{program}/{t.name}/Rows/state.output[0]', f'{t.name} value') if t.constraint == 'inequality'
+              else _path(f'{program}/{t.name}/Rows/state.error_norm', f'{t.name} error') for t in app.program.tasks]
     return {
         'configById': {
             '3D!itasc': {
@@ -90,13 +89,12 @@ def main(argv: list[str] | None = None) -> int:
 
     from ..apps import resolve_app
     from ..model import load_application
+    from . import _is_application
 
     parser = argparse.ArgumentParser(prog='itasc-foxglove', description=main.__doc__)
     parser.add_argument('app', help='application name or model file')
     parser.add_argument('-o', '--output', type=Path, help='write the layout here instead of printing it')
     args = parser.parse_args(argv)
-    from . import _is_application
-
     try:
         path = resolve_app(args.app)
         if not _is_application(path):
