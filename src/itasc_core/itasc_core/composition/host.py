@@ -3,9 +3,9 @@
 Started by the parent's Composer (forked from its process's zygote, :mod:`.zygote`); does for
 its composite what the bootstrap does for the root: brings up its Coordinator, Composer and
 Configurator, then lets the life-cycle run. Its Scheduler is triggered over the composite's trigger
-topic. The process ends after its Coordinator notified
-the parent that it stopped, or when the parent process is gone: a composite whose parent died can
-never be stopped in order, and must not outlive it. SIGINT and SIGTERM are ignored: a terminal's
+topic. The process ends after its Coordinator notified the parent that it stopped (exit 0), or when
+the parent process is gone (exit 1): a composite whose parent died can never be stopped in order,
+and must not outlive it. SIGINT and SIGTERM are ignored: a terminal's
 Ctrl-C and a process manager's stop reach every process of the application, and the bootstrap
 answers them with an orderly Stop of the whole hierarchy, which this process must stay alive to
 take part in. Its parent ends it with SIGKILL when it cannot stop in order.
@@ -17,8 +17,10 @@ import argparse
 import faulthandler
 import json
 import os
+import select
 import signal
 import time
+from typing import Callable
 
 import rclpy
 from rclpy.signals import SignalHandlerOptions
@@ -32,6 +34,17 @@ from .model import CompositeModel
 
 #: Time to let the last events (e_<c>_stopped) reach the parent before the process exits.
 LINGER = 0.5
+
+
+def parent_gone(pid: int) -> Callable[[], bool]:
+    """A check whether process ``pid`` has ended. Not ``os.getppid() != pid``: a process forked by
+    a zygote is the child of the zygote's intermediate process until that one has exited, and on a
+    loaded machine that came after the composite's bring-up, which then took itself for orphaned."""
+    try:
+        pidfd = os.pidfd_open(pid)  # readable once the process has ended
+    except ProcessLookupError:
+        return lambda: True
+    return lambda: bool(select.select([pidfd], [], [], 0)[0])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,13 +67,14 @@ def main(argv: list[str] | None = None) -> int:
     executor = make_executor()
     runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace, background=True,
                       zygote=zygote)
+    orphaned = parent_gone(args.parent_pid)
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     stopped_at = None
     try:
         while True:
             executor.spin_once(timeout_sec=0.05)
             runtime.reap()
-            if os.getppid() != args.parent_pid:
+            if orphaned():
                 composer.get_logger().error(f'parent process {args.parent_pid} is gone; {model.name} ends')
                 break
             if stopped_at is None and composer.coordinator.state.endswith('NotifyStopped'):
@@ -75,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
             executor.remove_node(node)
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return 0 if stopped_at is not None else 1
 
 
 if __name__ == '__main__':
