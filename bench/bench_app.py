@@ -13,7 +13,13 @@ in the initial state of its Running sub-FSM):
 * ``handwritten_p50_us``: the cycle of a hand-written rclpy node doing the same with its driver
   in another process (:mod:`handwritten`).
 
-    python bench/bench_app.py --app NAME --rate HZ --seconds S [--deploy single|per-composite] [--record] --json
+A composition model (``composite:``, no constraint-based program) has no solver step and no
+hand-written equivalent: those figures are null and ``baseline`` says why. A Driver that talks to
+an outside driver (``ros2_control``) is run against the stand-in its kind names
+(:mod:`stand_ins`, ``fake_ros2_control``), unless ``--drivers external`` says that the real one runs.
+
+    python bench/bench_app.py --app NAME --rate HZ --seconds S [--deploy single|per-composite] [--record]
+                              [--drivers stand-in|external] --json
 
 Without ``--json`` (``make bench``): the whole comparison (rates 100/500/1000 Hz, ``--record``,
 ``--deploy per-composite``, 1..50 Tasks, 7 and 38 DOF, the reaction to a Monitor), written to
@@ -61,11 +67,27 @@ def _root_name(app: str) -> str:
     return load_composition(app).name
 
 
-def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', record: bool = False) -> dict:
-    """The application through the bootstrap: its summary's figures, and when the console said
-    that the root is Running (seconds after the process started)."""
+def application(app: str):
+    """The checked application model of ``app`` (``load_application``), or None for a composition
+    model (``composite:``), which has no constraint-based program."""
+    from itasc_bringup.apps import resolve_app
+    from itasc_bringup.model import load_application
+    from itasc_core.composition.loader import ModelError
+    try:
+        return load_application(resolve_app(app))
+    except ModelError:  # the bootstrap says what is wrong with a model that is neither
+        return None
+
+
+def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', record: bool = False,
+            stand_ins_of=None) -> dict:
+    """The application through the bootstrap (against the stand-ins of the outside drivers of
+    ``stand_ins_of``, its checked model): its summary's figures, and when the console said that
+    the root is Running (seconds after the process started)."""
+    from stand_ins import StandIns
     running_line = f'[state] {_root_name(app)}: Active.Run.Running'
-    with tempfile.TemporaryDirectory(prefix='bench_app_') as tmp:
+    drivers = StandIns(stand_ins_of, rate=rate, env=_env())
+    with tempfile.TemporaryDirectory(prefix='bench_app_') as tmp, drivers:
         summary_path = pathlib.Path(tmp) / 'summary.json'
         command = [sys.executable, '-m', 'itasc_bringup.bootstrap', app, '--rate', str(rate),
                    '--duration', str(seconds), '--deploy', deploy, '--summary-json', str(summary_path)]
@@ -91,13 +113,15 @@ def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', re
             if process.poll() is None:
                 process.kill()
         reader.join(timeout=5)
+        died = '\n'.join(drivers.died())
         if not summary_path.exists():
-            raise RuntimeError(f'{app} failed (exit {process.returncode}):\n{"".join(out)[-3000:]}\n{err[-3000:]}')
+            raise RuntimeError(f'{app} failed (exit {process.returncode}):\n{"".join(out)[-3000:]}\n'
+                               f'{err[-3000:]}\n{died}')
         summary = json.loads(summary_path.read_text())
         recorded = _recorded_messages(pathlib.Path(tmp) / 'run') if record else None
     rate_ = summary['rate']
     if rate_['tick_p50'] is None:
-        raise RuntimeError(f"{app}: no tick ({summary['ended']}, exit {summary['exit_code']}):\n{err[-3000:]}")
+        raise RuntimeError(f"{app}: no tick ({summary['ended']}, exit {summary['exit_code']}):\n{err[-3000:]}\n{died}")
     return {
         'achieved_hz': rate_['achieved'], 'tick_p50_us': rate_['tick_p50'] * 1e6,
         'tick_p99_us': rate_['tick_p99'] * 1e6, 'ticks': rate_['ticks'], 'dropped_ticks': rate_.get('dropped', 0),
@@ -149,12 +173,27 @@ def run_fused(app: str, *, rate: float, steps: int = 3000, paced_seconds: float 
     return json.loads(line.removeprefix('RESULT '))
 
 
+#: The figures of the solver step alone and of the hand-written node (null without a baseline).
+BASELINE_KEYS = ('solver_p50_us', 'qp_alone_p50_us', 'solver_paced_p50_us', 'handwritten_p50_us',
+                 'handwritten_p99_us', 'handwritten_hz', 'tick_over_solver', 'tick_over_solver_paced',
+                 'tick_over_handwritten')
+
+
 def measure(app: str, *, rate: float, seconds: float, deploy: str = 'single', record: bool = False,
-            baseline: bool = True) -> dict:
-    """One application run and, in the same run, its solver step alone and the hand-written node."""
+            baseline: bool = True, stand_ins: bool = True) -> dict:
+    """One application run and, in the same run, its solver step alone and the hand-written node
+    (none for a composition model: ``baseline`` says so)."""
     result = {'app': app, 'rate_hz': rate, 'deploy': deploy, 'record': record, 'seconds': seconds}
+    model = application(app)
+    if baseline and model is None:
+        baseline = False
+        result |= dict.fromkeys(BASELINE_KEYS) | {
+            'baseline': f'none: {app} is a composition model (composite:), it has no constraint-based program'}
     before = run_fused(app, rate=rate) if baseline else None
-    result |= run_app(app, rate=rate, seconds=seconds, deploy=deploy, record=record)
+    result |= run_app(app, rate=rate, seconds=seconds, deploy=deploy, record=record,
+                      stand_ins_of=model if stand_ins else None)
+    if model is not None and not result['solver_hz']:  # tick times of a program that never computed
+        raise RuntimeError(f'{app}: the Solver never solved in {seconds:g} s (no joint states from a driver?)')
     if before is not None:  # the solver step alone, before and after the run: the load drifts
         after = run_fused(app, rate=rate)
         result |= {key: (before[key] + after[key]) / 2 for key in before}
@@ -276,13 +315,17 @@ def main() -> None:
     parser.add_argument('--scaling-seconds', type=float, default=5.0, help='run time of the 1..50 Tasks runs')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--record', action='store_true')
+    parser.add_argument('--drivers', choices=('stand-in', 'external'), default='stand-in',
+                        help="an outside driver (ros2_control): run the stand-in its kind names, or "
+                             "'external': the real one runs already")
     parser.add_argument('--json', action='store_true', help='one measurement, printed as one JSON object')
     parser.add_argument('--out', type=pathlib.Path, default=HERE, help='where the report goes (default: bench/)')
     args = parser.parse_args()
     if not args.json:
         report(args)
         return
-    result = measure(args.app, rate=args.rate, seconds=args.seconds, deploy=args.deploy, record=args.record)
+    result = measure(args.app, rate=args.rate, seconds=args.seconds, deploy=args.deploy, record=args.record,
+                     stand_ins=args.drivers == 'stand-in')
     print(json.dumps(result))
 
 

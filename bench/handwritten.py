@@ -3,7 +3,8 @@
 ports, events or life-cycle) on a timer and publishes the joint velocity command; its Driver, the
 simulated robot of ``itasc_drivers`` running standalone, lives in a process of its own as a real
 driver would. The cycle time is the timer callback's: read the newest joint state, compute,
-publish.
+publish. Every robot of the program has its simulated driver (a program of several robots reads
+all their joint states), its joints starting where the application's Driver starts them.
 
     python bench/handwritten.py APP --rate HZ --seconds S    # prints RESULT {json}
 """
@@ -43,23 +44,29 @@ def main(argv: list[str] | None = None) -> int:
     from fused import FusedProgram
     from itasc_bringup.apps import resolve_app
     from itasc_bringup.model import load_application
+    from itasc_bringup.model.checks import driven_robot
+    from stand_ins import initial_positions
 
     app = load_application(resolve_app(args.app))
     program = FusedProgram.of(app)
-    robot = app.program.robots[0]
-    driver = next(d for d in app.drivers if d.robot == robot.name)
-    initial = ','.join(f'{k}={v}' for k, v in driver.initial.items())
-    sim = subprocess.Popen([sys.executable, '-m', 'itasc_drivers.simulated_robot', '--urdf', robot.urdf,
-                            '--robot', robot.name, '--base', robot.base, '--rate', str(args.rate),
-                            '--namespace', '/handwritten_sim', '--command-topic', '/handwritten/command',
-                            *(['--initial', initial] if initial else [])],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    drivers = {d.robot: d for d in app.drivers}
+    sims = []
+    for robot in app.program.robots:
+        initial = initial_positions(drivers.get(robot.name), driven_robot(robot, args.rate))
+        sims.append(subprocess.Popen(
+            [sys.executable, '-m', 'itasc_drivers.simulated_robot', '--urdf', robot.urdf, '--robot', robot.name,
+             '--base', robot.base, '--rate', str(args.rate), '--namespace', '/handwritten_sim',
+             '--command-topic', '/handwritten/command',
+             '--initial', ','.join(f'{k}={v!r}' for k, v in initial.items())],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
     rclpy.init()
     node = rclpy.create_node('handwritten')
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE)
-    latest: list = [None]
-    node.create_subscription(JointState, f'/handwritten_sim/{robot.name}/joint_state',
-                             lambda msg: latest.__setitem__(0, msg), qos)
+    latest: dict[str, JointState] = {}  # the newest joint state of each robot
+    for robot in app.program.robots:
+        node.create_subscription(JointState, f'/handwritten_sim/{robot.name}/joint_state',
+                                 lambda msg, name=robot.name: latest.__setitem__(name, msg), qos)
+    robots = len(app.program.robots)
     publisher = node.create_publisher(JointState, '/handwritten/command', qos)
     names = program.joint_names
     index = {n: i for i, n in enumerate(names)}
@@ -70,14 +77,14 @@ def main(argv: list[str] | None = None) -> int:
 
     def cycle() -> None:
         began = time.monotonic()
-        msg = latest[0]
-        if msg is None:
+        if len(latest) < robots:
             return
         q = program.initial.copy()
-        for name, value in zip(msg.name, msg.position):
-            i = index.get(name)
-            if i is not None:
-                q[i] = value
+        for msg in latest.values():
+            for name, value in zip(msg.name, msg.position):
+                i = index.get(name)
+                if i is not None:
+                    q[i] = value
         qdot = program.step(q, began - start, dt)
         out = JointState(name=names, velocity=qdot.tolist())
         out.header.stamp = node.get_clock().now().to_msg()
@@ -92,10 +99,11 @@ def main(argv: list[str] | None = None) -> int:
     code = 1
     try:
         deadline = time.monotonic() + 30.0
-        while latest[0] is None and time.monotonic() < deadline:
+        while len(latest) < robots and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        if latest[0] is None:
-            print('handwritten: the simulated driver never published', file=sys.stderr)
+        if len(latest) < robots:
+            silent = [r.name for r in app.program.robots if r.name not in latest]
+            print(f'handwritten: the simulated driver of {", ".join(silent)} never published', file=sys.stderr)
             return code
         settle = time.monotonic() + args.settle
         while time.monotonic() < settle:
@@ -114,11 +122,13 @@ def main(argv: list[str] | None = None) -> int:
         code = 0
         return code
     finally:
-        sim.send_signal(signal.SIGINT)
-        try:
-            sim.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            sim.kill()
+        for sim in sims:
+            sim.send_signal(signal.SIGINT)
+        for sim in sims:
+            try:
+                sim.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                sim.kill()
         os._exit(code)  # no lingering DDS teardown
 
 if __name__ == '__main__':

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from model_files import three_joint_arm, two_arms
 from rosbags.highlevel import AnyReader
 
 from itasc_bringup.apps import resolve_app
@@ -445,50 +446,18 @@ def test_a_burst_of_transitions_is_published_together_and_the_last_array_holds_e
     assert len(received) <= 40, f'{len(received)} arrays of {len(composites)} statuses for {transitions} transitions'
 
 
-ARM = """<?xml version="1.0"?>
-<robot name="arm">
-  <link name="base_link"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="flange"/>
-  <joint name="j1" type="revolute"><parent link="base_link"/><child link="l1"/><origin xyz="0 0 0.3"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><axis xyz="0 1 0"/>
-    <limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0 0 0.4"/>
-    <axis xyz="0 1 0"/><limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
-  <joint name="j4" type="fixed"><parent link="l3"/><child link="flange"/><origin xyz="0 0 0.4"/></joint>
-</robot>
-"""
+ARM = three_joint_arm()  # the robot of arm_reach
 
 
 @pytest.fixture(scope='module')
 def arm_run(tmp_path_factory) -> Path:
     """A 2 s recording of ``arm_reach``: not a Panda, two robots far from the origin."""
     tmp_path = tmp_path_factory.mktemp('arm')
-    (tmp_path / 'arm.urdf').write_text(ARM, encoding='utf-8')
-    (tmp_path / 'other.urdf').write_text(ARM.replace('name="j', 'name="b_j'), encoding='utf-8')
-    (tmp_path / 'arm.yaml').write_text(f"""
-application:
-  name: arm_reach
-  rate: 100
-  program:
-    name: itasc
-    robots:
-      - {{name: arm, urdf: {tmp_path / 'arm.urdf'}, xyz: [2.0, 1.0, 0.0], frames: [{{name: tool, link: flange}}]}}
-      - {{name: other, urdf: {tmp_path / 'other.urdf'}, xyz: [2.0, -1.0, 0.0], frames: [{{name: tool, link: flange}}]}}
-    objects:
-      - {{name: target, xyz: [2.3, 1.2, 0.6]}}
-      - {{name: goal, xyz: [2.2, -1.2, 0.7]}}
-    tasks:
-      - {{name: Reach, type: cartesian, o1: target, o2: arm/tool, outputs: [x, y, z],
-         controller: {{kind: p, kp: 2.0}}, setpoint: {{kind: minimum_jerk, pose: {{xyz: [0, 0, 0]}}, duration: 1.0}}}}
-      - {{name: Other, type: cartesian, o1: goal, o2: other/tool, outputs: [x, y, z],
-         controller: {{kind: p, kp: 2.0}}, setpoint: {{kind: minimum_jerk, pose: {{xyz: [0, 0, 0]}}, duration: 1.0}}}}
-    solver: {{kind: qp}}
-  drivers:
-    - {{robot: arm, kind: simulated, initial: {{j2: 0.3, j3: 0.5}}}}
-    - {{robot: other, kind: simulated, initial: {{b_j2: -0.3, b_j3: 0.5}}}}
-""", encoding='utf-8')
+    model = two_arms(tmp_path, name='arm_reach', drivers=[
+        {'robot': 'arm', 'kind': 'simulated', 'initial': {'j2': 0.3, 'j3': 0.5}},
+        {'robot': 'other', 'kind': 'simulated', 'initial': {'b_j2': -0.3, 'b_j3': 0.5}}])
     mcap = tmp_path / 'run.mcap'
-    result = subprocess.run([*BOOTSTRAP, str(tmp_path / 'arm.yaml'), '--duration', '2', '--record', str(mcap)],
+    result = subprocess.run([*BOOTSTRAP, str(model), '--duration', '2', '--record', str(mcap)],
                             capture_output=True, text=True, timeout=180)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     return mcap
@@ -499,7 +468,7 @@ def test_the_foxglove_layout_of_another_application_shows_its_own_topics(arm_run
     application's recording (the shipped layout names approach_object's topics only)."""
     out = arm_run.parent / 'layout.json'
     result = subprocess.run([sys.executable, '-m', 'itasc_bringup.visualization.layout',
-                             str(arm_run.parent / 'arm.yaml'), '-o', str(out)],
+                             str(arm_run.parent / 'arm_reach.yaml'), '-o', str(out)],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     layout = json.loads(out.read_text(encoding='utf-8'))

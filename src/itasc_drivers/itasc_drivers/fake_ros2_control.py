@@ -13,6 +13,7 @@ follows what it receives:
   first point, reaching it ``time_from_start`` after receipt, and stays there.
 
 ``--state-qos sensor_data``: joint states best effort, as many drivers and simulators publish them.
+``--command-topic``: where the commands come instead (a controller whose topic was remapped).
 
 Used to test the Ros2ControlAdapter Driver (paper §4.2: the same program on other hardware by
 swapping the Driver). Run: ``fake_ros2_control [--controller velocity_controller] [--rate 200]``.
@@ -43,7 +44,8 @@ class FakeRos2Control(Node):
     """joint_state_broadcaster + a joint group controller, kinematically simulated."""
 
     def __init__(self, *, joints: list[str], initial: list[float], extra_joint: str, controller: str,
-                 interface: str, rate: float, joint_states: str, state_qos: QoSProfile | int = 10) -> None:
+                 interface: str, rate: float, joint_states: str, state_qos: QoSProfile | int = 10,
+                 command_topic: str | None = None) -> None:
         super().__init__('fake_ros2_control')
         self.joints = list(joints)
         self.positions = dict(zip(joints, initial))
@@ -53,9 +55,11 @@ class FakeRos2Control(Node):
         self.commands_received = 0
         self._publisher = self.create_publisher(JointState, joint_states, state_qos)
         if interface == 'trajectory':
-            self.create_subscription(JointTrajectory, f'/{controller}/joint_trajectory', self._on_trajectory, 10)
+            self.create_subscription(JointTrajectory, command_topic or f'/{controller}/joint_trajectory',
+                                     self._on_trajectory, 10)
         else:
-            self.create_subscription(Float64MultiArray, f'/{controller}/commands', self._on_command, 10)
+            self.create_subscription(Float64MultiArray, command_topic or f'/{controller}/commands',
+                                     self._on_command, 10)
         self._arrival: float | None = None  # trajectory: when the point is reached
         self._last = time.monotonic()
         self.create_timer(1.0 / rate, self._step)
@@ -112,6 +116,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--interface', default='velocity', choices=('velocity', 'position', 'trajectory'))
     parser.add_argument('--rate', type=float, default=200.0)
     parser.add_argument('--joint-states', default='/joint_states')
+    parser.add_argument('--command-topic', default=None,
+                        help='where the commands come '
+                             '(default: /<controller>/commands, or /<controller>/joint_trajectory)')
     parser.add_argument('--state-qos', default='reliable', choices=('reliable', 'sensor_data'),
                         help="the joint states' QoS: reliable (joint_state_broadcaster's) or sensor_data "
                              '(best effort, as many drivers and simulators publish)')
@@ -125,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     node = FakeRos2Control(joints=joints, initial=initial, extra_joint=args.extra_joint,
                            controller=args.controller, interface=args.interface, rate=args.rate,
                            joint_states=args.joint_states,
-                           state_qos=qos_profile_sensor_data if args.state_qos == 'sensor_data' else 10)
+                           state_qos=qos_profile_sensor_data if args.state_qos == 'sensor_data' else 10,
+                           command_topic=args.command_topic)
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -44,5 +44,13 @@ class Driver:
         section and why, or None."""
         return None
 
+    @classmethod
+    def stand_in(cls, section: Any, *, robot: DrivenRobot, initial: Mapping[str, float]) -> list[str] | None:
+        """The command line of a process that stands in for the outside driver ``section`` talks to,
+        speaking what that driver speaks, with ``robot``'s joints at ``initial`` (by name), so that the
+        application runs where that driver is not (a benchmark, a test); None when the Driver needs
+        no other process (it simulates the robot itself)."""
+        return None
+
 
 DRIVERS: Registry[Driver] = Registry('itasc.drivers', what='driver', base=Driver)

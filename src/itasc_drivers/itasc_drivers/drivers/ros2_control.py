@@ -3,6 +3,8 @@ command topic and ``joint_states`` (:class:`itasc_drivers.ros2_control_adapter.R
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Mapping
 from typing import Any, Literal
 
 from itasc_core.computation.parameters import ParameterModel
@@ -36,10 +38,20 @@ class Ros2Control(Driver):
 
     @classmethod
     def parameters(cls, section: Ros2ControlSection, robot: DrivenRobot) -> dict[str, Any]:
-        suffix = 'joint_trajectory' if section.interface == 'trajectory' else 'commands'
         return {'robot': robot.name, 'joints': list(section.joints), 'joint_states_topic': section.joint_states,
-                'command_topic': section.command_topic or f'/{section.controller.strip("/")}/{suffix}',
-                'interface': section.interface, 'horizon': 2.0 / robot.rate}
+                'command_topic': _command_topic(section), 'interface': section.interface,
+                'horizon': 2.0 / robot.rate}
+
+    @classmethod
+    def stand_in(cls, section: Ros2ControlSection, *, robot: DrivenRobot,
+                 initial: Mapping[str, float]) -> list[str]:
+        """``fake_ros2_control`` with the section's joints, controller, interface and topics,
+        publishing at the application's rate."""
+        return [sys.executable, '-m', 'itasc_drivers.fake_ros2_control', '--joints', ','.join(section.joints),
+                '--initial', ','.join(repr(float(initial[j])) for j in section.joints),
+                '--controller', section.controller.strip('/'), '--interface', section.interface,
+                '--command-topic', _command_topic(section), '--joint-states', section.joint_states,
+                '--rate', repr(float(robot.rate))]
 
     @classmethod
     def problem(cls, section: Ros2ControlSection, *, robot: DrivenRobot) -> tuple[tuple[str | int, ...], str] | None:
@@ -51,3 +63,8 @@ class Ros2Control(Driver):
         if missing or len(set(section.joints)) != len(section.joints):
             return ('joints',), f'list every joint of the robot once (missing: {missing})'
         return None
+
+
+def _command_topic(section: Ros2ControlSection) -> str:
+    suffix = 'joint_trajectory' if section.interface == 'trajectory' else 'commands'
+    return section.command_topic or f'/{section.controller.strip("/")}/{suffix}'
