@@ -261,3 +261,23 @@ def test_an_entity_switched_on_again_is_told_so_once():
         assert first.activations == 1
     finally:
         h.close()
+
+
+def test_the_entities_of_a_composite_switched_off_are_told_so_once():
+    """``e_T1_deactivate``: every entity of T1 hears that it is off (a Task's rows leave the Solver's
+    problem at once), then T1 computes nothing; said again, nobody hears it twice."""
+    h = Hierarchy(model())
+    try:
+        h.start()
+        assert h.spin_until(lambda: all_running(h))
+        t1 = h.composer.children['program'].children['T1'].entities
+        h.raise_event('e_T1_deactivate', '/root/program')
+        assert h.spin_until(lambda: all(e.deactivations == 1 for e in t1.values()), timeout=2)
+        probes.CALLS.clear()
+        h.raise_event('e_T1_deactivate', '/root/program')  # already off
+        h.spin_for(0.2)
+        assert [e.deactivations for e in t1.values()] == [1, 1]
+        assert probes.CALLS and not any('/T1/' in name for _, name in probes.CALLS)
+    finally:
+        h.close()
+

@@ -23,10 +23,13 @@ class OrderProbe(FunctionalEntity):
     def configure(self, params: Parameters) -> None:
         self.raise_name, self.at_tick = params.raise_on_tick, params.at_tick
         self.ticks = 0
-        self.activations = 0
+        self.activations = self.deactivations = 0
 
     def activate(self) -> None:
         self.activations += 1
+
+    def deactivate(self, t: float) -> None:
+        self.deactivations += 1
 
     def update(self, t: float) -> None:
         self.ticks += 1

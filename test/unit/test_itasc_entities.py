@@ -24,7 +24,7 @@ from itasc_core.entity import CompositeContext
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
 from itasc_core.communication.samples import JointSample, as_message, as_sample
-from itasc_core.itasc.entities.messages import FeaturesSample, stamp
+from itasc_core.itasc.entities.messages import ControlSample, FeaturesSample, stamp
 from itasc_drivers.fake_ros2_control import PANDA, PANDA_READY, FakeRos2Control
 from itasc_drivers.pose_sensor import PoseSensor
 from itasc_drivers.ros2_control_adapter import Ros2ControlAdapter
@@ -335,6 +335,47 @@ def test_solver_uses_only_rows_of_this_tick_in_any_joint_order(world):
     solver.update(1.0)
     assert list(solver.outputs['status'].last.active_tasks) == ['New']
     assert solver.outputs['command'].last.velocity[6] == pytest.approx(0.2, abs=1e-4)  # panda_joint7
+
+
+def test_solver_counts_rows_from_another_process_that_come_late_until_they_are_too_old(world):
+    """A Task in another process (``--deploy per-composite``): its rows cross DDS and come a tick
+    or more after the tick that triggered them. Before, only rows of the last 1.5 ticks counted, so
+    the Solver solved without such a Task most of the time at 500 Hz."""
+    near = world.entity(ConstraintRowsEntity, 'Near', task='Near').outputs['rows'].topic  # in this process
+    solver = _solver(world, kind='qp')
+    rows = solver.inputs['rows']
+    rows.connect('/elsewhere/Far/Rows/rows')  # no output of that topic in this process: read over DDS
+    rows.connect(near)
+    assert rows.remote == {'/elsewhere/Far/Rows/rows'}
+    rows.deliver(as_sample(_rows('Far', 1.0, 0.2)), '/elsewhere/Far/Rows/rows')
+    rows.deliver(as_sample(_rows('Near', 1.0, 0.1, joints=list(reversed(PANDA)))), near)
+    for k in range(6):  # 5 ticks later: Far's rows still count, Near's (this process) are of another tick
+        solver.update(1.0 + k * DT)
+    assert list(solver.outputs['status'].last.active_tasks) == ['Far']
+    for k in range(6, 12):  # older than remote_rows_age (0.1 s): a Task that stopped computing
+        solver.update(1.0 + k * DT)
+    assert list(solver.outputs['status'].last.active_tasks) == []
+
+
+def test_a_task_switched_off_leaves_the_solvers_problem_at_once_wherever_it_computes(world):
+    """Deactivated, the Task's Rows entity writes rows of none: the Solver drops the Task in the
+    next tick, in which the rows of the tick before would still count (as those from another process
+    count for ``remote_rows_age``)."""
+    rows = world.entity(ConstraintRowsEntity, 'Rows', task='T')
+    solver = _solver(world, kind='qp')
+    solver.inputs['rows'].connect(rows.outputs['rows'].topic)
+    rows.inputs['output'].deliver(FeaturesSample(1.0, ('x',), tuple(PANDA), np.array([0.3]),
+                                                 np.eye(1, len(PANDA))), 'co')
+    rows.inputs['control'].deliver(ControlSample(1.0, ('x',), desired=np.array([0.2]), lower=np.array([0.2]),
+                                                 upper=np.array([0.2]), setpoint=np.array([0.5]),
+                                                 error=np.array([0.2])), 'cc')
+    rows.update(1.0)
+    solver.update(1.0)
+    assert list(solver.outputs['status'].last.active_tasks) == ['T']
+    rows.deactivate(1.005)  # between two ticks
+    solver.update(1.01)
+    assert list(solver.outputs['status'].last.active_tasks) == []
+    assert list(solver.outputs['command'].last.velocity) == pytest.approx([0.0] * 7, abs=1e-6)
 
 
 def test_solver_raises_an_event_when_it_saturates(world):

@@ -293,6 +293,9 @@ class InputPort:
         self._links: list[OutputPort] = []
         self._subscriptions: list = []
         self.sources: list[str] = []
+        #: The sources whose output lives in another process: their samples cross DDS and come
+        #: later than those of the same tick (at times a tick or more).
+        self.remote: set[str] = set()
         self.latest: Any = None
         #: For ``multiple`` inputs: the newest sample of every source topic.
         self.samples: dict[str, Any] = {}
@@ -316,6 +319,7 @@ class InputPort:
         else:
             self._subscriptions.append(self._node.create_subscription(
                 self.spec.msg_type, topic, functools.partial(self.deliver, topic=topic), DATA_QOS))
+            self.remote.add(topic)
 
     def relink(self, old: OutputPort, new: OutputPort) -> None:
         """The output this input is linked to was replaced (see :meth:`OutputPort.take_over`)."""
@@ -332,6 +336,7 @@ class InputPort:
         if topic not in self.sources:
             return
         self.sources.remove(topic)
+        self.remote.discard(topic)
         self.samples.pop(topic, None)
         for output in [o for o in self._links if o.topic == topic]:
             output.unlink(self)
@@ -360,4 +365,5 @@ class InputPort:
         self._links.clear()
         self._subscriptions.clear()
         self.sources.clear()
+        self.remote.clear()
         self.samples.clear()

@@ -192,6 +192,13 @@ class FunctionalEntity(Entity):
         being off: continue from the present, not from where it stopped (e.g. a setpoint
         generator restarts from the current output)."""
 
+    def deactivate(self, t: float) -> None:
+        """Switched off by the Coordinator (``e_<entity or its composite>_deactivate``) at ``t``
+        (between two ticks, in their time): no more ticks until it is switched on again. Whoever
+        reads its outputs must learn that what it last wrote no longer holds (e.g. a Task's rows
+        leave the Solver's problem), wherever they are read: in another process, the last sample
+        would otherwise simply come no more."""
+
     def disengage(self) -> None:
         """Stop acting on the world (Stopped.Disengage), e.g. command zero velocity."""
 

@@ -15,6 +15,7 @@ the tick on to its children, which are in Safety too.
 from __future__ import annotations
 
 import gc
+import time
 import traceback
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -60,6 +61,8 @@ class Scheduler(Entity):
         #: In Safety: each tick makes every entity safe instead of computing.
         self.safety = False
         self.ticks = 0
+        #: The latest tick's time and when it came (``time.monotonic()``): the time now, in ticks' terms.
+        self._tick_t, self._tick_at = 0.0, time.monotonic()
         self.faulted = False
         self._bus = LocalBus.of(self.context)
         c = composite.name
@@ -142,17 +145,21 @@ class Scheduler(Entity):
         if handler is not None:
             handler()
             return
-        if msg.name == named(ACTIVATE) and self._trigger_sub is not None:
-            # This composite lives in its own process: its parent's e_<composite>_activate
-            # reaches it through its Coordinator.
-            self.activate_all()
+        if msg.name in (named(ACTIVATE), named(DEACTIVATE)) and self._trigger_sub is not None:
+            # This composite lives in its own process: its parent's e_<composite>_activate or
+            # _deactivate reaches it through its Coordinator.
+            if msg.name == named(ACTIVATE):
+                self.activate_all()
+            else:
+                self.deactivate_all(self.now())
             return
         for item in self._items:
             if msg.name == event(item.name, ACTIVATE) and not item.enabled:
                 self._enable(item, True)
                 self._reactivate(item)
-            elif msg.name == event(item.name, DEACTIVATE):
+            elif msg.name == event(item.name, DEACTIVATE) and item.enabled:
                 self._enable(item, False)
+                self._deactivate(item, self.now())
 
     def _reactivate(self, item: _Item) -> None:
         if item.entity is not None:
@@ -160,10 +167,27 @@ class Scheduler(Entity):
         elif item.child is not None and item.child.scheduler is not None:
             item.child.scheduler.activate_all()
 
+    def _deactivate(self, item: _Item, t: float) -> None:
+        """``item`` was switched off at ``t`` (a child composite in another process hears it itself)."""
+        if item.entity is not None:
+            item.entity.deactivate(t)
+        elif item.child is not None and item.child.scheduler is not None:
+            item.child.scheduler.deactivate_all(t)
+
     def activate_all(self) -> None:
         """Everything this Scheduler runs was switched on again (its composite was)."""
         for item in self._items:
             self._reactivate(item)
+
+    def deactivate_all(self, t: float) -> None:
+        """Its composite was switched off at ``t``: everything this Scheduler runs that is on hears it."""
+        for item in self._items:
+            if item.enabled:
+                self._deactivate(item, t)
+
+    def now(self) -> float:
+        """The time now, as the ticks count it (between two ticks: after the latest one)."""
+        return self._tick_t + (time.monotonic() - self._tick_at)
 
     def _entities(self):
         return [i.entity for i in self._items if i.entity is not None] + self._monitors
@@ -214,6 +238,7 @@ class Scheduler(Entity):
         if not self.active:
             return
         self.ticks += 1
+        self._tick_t, self._tick_at = t, time.monotonic()
         try:
             for item in self._items:
                 if item.enabled:

@@ -4,7 +4,9 @@
 It joins the Constraint Output's Jacobian J_y with the Constraint Controller's desired output
 velocity (or bounds), the Task's row ``weights`` and ``priority`` into ``itasc_msgs/ConstraintRows``
 (port ``rows``), and publishes what the Task sees, ``itasc_msgs/TaskState`` (output y, setpoint,
-error and its norm; port ``state``) for Monitors, recordings and plots.
+error and its norm; port ``state``) for Monitors, recordings and plots. Switched off, it writes
+rows of none, stamped with when that happened, so that the Task leaves the Solver's problem at once,
+in any process.
 """
 
 from __future__ import annotations
@@ -63,6 +65,15 @@ class ConstraintRowsEntity(FunctionalEntity):
         self.weights = np.asarray(params.weights, dtype=float)
         self.inequality = params.inequality
         self._row_weights = self.weights  # one per row, remade when the number of rows changes
+
+    def deactivate(self, t: float) -> None:
+        last = self.outputs['rows'].last
+        if last is None or last.rows == 0:
+            return
+        none = np.empty((0, len(last.joint_names)))
+        self.outputs['rows'].write(RowsSample(
+            max(t, last.t), self.task, priority=self.priority, inequality=self.inequality, joint_names=last.joint_names,
+            jacobian=none, desired=np.empty(0), lower=np.empty(0), upper=np.empty(0), weights=np.empty(0)))
 
     def update(self, t: float) -> None:
         output, control = self.inputs['output'].latest, self.inputs['control'].latest

@@ -1,11 +1,14 @@
 """SolverEntity: the Solver of a constraint-based program (paper §4.1 "Solver", §2.2).
 
 Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/ConstraintRows``
-sample per connected Task, :class:`.messages.RowsSample`; only rows of the current tick count, so
-a Task the Coordinator deactivated drops out at once), solves the prioritised problem with the
-configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
-squares with null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers)
-within the joint position and velocity limits, and writes
+sample per connected Task, :class:`.messages.RowsSample`): the newest of each Task in this process
+counts if it is of the current tick; that of a Task in another process (``--deploy
+per-composite``) crosses DDS and comes a tick or more after the tick that triggered it, so it counts
+while it is at most ``remote_rows_age`` old. A Task the Coordinator deactivated writes rows of none
+and drops out at once; one that stops computing drops out when its rows get too old. It solves the
+prioritised problem with the configured solver (a registered Solver kind, :mod:`..solver.kind`:
+``wdls``, weighted damped least squares with null-space priorities; ``qp``, a cascade of QPs with
+inequalities through qpsolvers) within the joint position and velocity limits, and writes
 
 * ``command``: the joint velocity setpoints as ``sensor_msgs/JointState`` — ``name`` (the
   program's joints) and ``velocity``; a JointState rather than a bare array so that every
@@ -78,6 +81,8 @@ class SolverEntity(FunctionalEntity):
         """Weight of each joint's velocity: one value, or one per joint (> 0)."""
         period: float = Field(default=0.01, gt=0)
         """The nominal tick period [s], used until two ticks were seen."""
+        remote_rows_age: float = Field(default=0.1, gt=0)
+        """How old the rows of a Task in another process may be and still count [s]."""
 
         @model_validator(mode='after')
         def _per_joint(self) -> 'SolverEntity.Parameters':
@@ -118,6 +123,7 @@ class SolverEntity(FunctionalEntity):
         self.solver = SOLVERS[params.kind].create(params, joint_weights=joint_weights,
                                                   position_limit_gain=params.position_limit_gain)
         self.period = params.period
+        self.remote_rows_age = params.remote_rows_age
         self._last_t: float | None = None
         self._dt = self.period
         self.status = 'ok'
@@ -161,11 +167,12 @@ class SolverEntity(FunctionalEntity):
         return q
 
     def _rows(self, t: float) -> list[ConstraintRows]:
-        """The rows of this tick (stale rows of deactivated Tasks are left out), in Scene order."""
-        fresh = t - 1.5 * self._dt
+        """The rows that count in this tick (see the module's docstring), in Scene order."""
+        port = self.inputs['rows']
+        fresh, remote_fresh = t - 1.5 * self._dt, t - self.remote_rows_age
         rows = []
-        for sample in self.inputs['rows'].samples.values():
-            if sample.t < fresh or sample.rows == 0:
+        for topic, sample in port.samples.items():
+            if sample.rows == 0 or sample.t < (remote_fresh if topic in port.remote else fresh):
                 continue
             rows.append(self._problem_rows(sample))
         return rows
