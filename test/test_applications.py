@@ -97,9 +97,9 @@ def test_approach_object_with_a_process_per_composite_at_500_hz(tmp_path):
     settled = solves[len(solves) // 10:]  # after the first rows came
     without = sum(not tasks for tasks in settled)
     assert without < 0.02 * len(settled), f'{without} of {len(settled)} solves without any Task'
-    # retreat switches ApproachObject off and Retreat on: for a few ticks at most both count
+    # retreat switches ApproachObject off and Retreat on: ApproachObject's late rows no longer count
     both = sum('ApproachObject' in tasks and 'Retreat' in tasks for tasks in solves)
-    assert both <= 5, f'{both} solves with both ApproachObject and Retreat'
+    assert both <= 2, f'{both} solves with both ApproachObject and Retreat'
 
 
 def test_approach_object_through_a_separate_ros2_control_like_driver(tmp_path):

@@ -20,6 +20,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from itasc_core.communication.events import EventListener
+from itasc_core.communication.ports import LocalBus
 from itasc_core.entity import CompositeContext
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
@@ -352,7 +353,12 @@ def test_solver_counts_rows_from_another_process_that_come_late_until_they_are_t
     for k in range(6):  # 5 ticks later: Far's rows still count, Near's (this process) are of another tick
         solver.update(1.0 + k * DT)
     assert list(solver.outputs['status'].last.active_tasks) == ['Far']
-    for k in range(6, 12):  # older than remote_rows_age (0.1 s): a Task that stopped computing
+    bus = LocalBus.of(solver.context)
+    bus.set_idle('/elsewhere/Far', True)  # this process switched Far's composite off: its rows hold no more
+    solver.update(1.0 + 6 * DT)
+    assert list(solver.outputs['status'].last.active_tasks) == []
+    bus.set_idle('/elsewhere/Far', False)
+    for k in range(7, 12):  # older than remote_rows_age (0.1 s): a Task that stopped computing
         solver.update(1.0 + k * DT)
     assert list(solver.outputs['status'].last.active_tasks) == []
 

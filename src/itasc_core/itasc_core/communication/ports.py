@@ -296,6 +296,7 @@ class InputPort:
         #: The sources whose output lives in another process: their samples cross DDS and come
         #: later than those of the same tick (at times a tick or more).
         self.remote: set[str] = set()
+        self._bus = LocalBus.of(node.context)
         self.latest: Any = None
         #: For ``multiple`` inputs: the newest sample of every source topic.
         self.samples: dict[str, Any] = {}
@@ -312,7 +313,7 @@ class InputPort:
         if topic in self.sources:
             return
         self.sources.append(topic)
-        output = LocalBus.of(self._node.context).lookup(topic)
+        output = self._bus.lookup(topic)
         if output is not None:
             output.link(self)
             self._links.append(output)
@@ -344,6 +345,11 @@ class InputPort:
         for subscription in [s for s in self._subscriptions if s.topic_name == topic]:
             self._node.destroy_subscription(subscription)
             self._subscriptions.remove(subscription)
+
+    def switched_off(self, topic: str) -> bool:
+        """Whether ``topic`` is read over DDS from a composite that this process has switched off
+        (:meth:`LocalBus.set_idle`): what came from there was written before, and holds no more."""
+        return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.idle)
 
     def deliver(self, msg: Any, topic: str) -> None:
         """Take a sample (or its ROS message, turned into the sample) from ``topic``."""

@@ -4,8 +4,9 @@ Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/Cons
 sample per connected Task, :class:`.messages.RowsSample`): the newest of each Task in this process
 counts if it is of the current tick; that of a Task in another process (``--deploy
 per-composite``) crosses DDS and comes a tick or more after the tick that triggered it, so it counts
-while it is at most ``remote_rows_age`` old. A Task the Coordinator deactivated writes rows of none
-and drops out at once; one that stops computing drops out when its rows get too old. It solves the
+while it is at most ``remote_rows_age`` old, unless this process switched its composite off. A
+Task the Coordinator deactivated writes rows of none and drops out at once; one that stops computing
+drops out when its rows get too old. It solves the
 prioritised problem with the configured solver (a registered Solver kind, :mod:`..solver.kind`:
 ``wdls``, weighted damped least squares with null-space priorities; ``qp``, a cascade of QPs with
 inequalities through qpsolvers) within the joint position and velocity limits, and writes
@@ -172,7 +173,8 @@ class SolverEntity(FunctionalEntity):
         fresh, remote_fresh = t - 1.5 * self._dt, t - self.remote_rows_age
         rows = []
         for topic, sample in port.samples.items():
-            if sample.rows == 0 or sample.t < (remote_fresh if topic in port.remote else fresh):
+            if sample.rows == 0 or sample.t < (remote_fresh if topic in port.remote else fresh) \
+                    or port.switched_off(topic):
                 continue
             rows.append(self._problem_rows(sample))
         return rows
