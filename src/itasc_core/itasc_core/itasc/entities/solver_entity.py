@@ -2,14 +2,14 @@
 
 Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/ConstraintRows``
 sample per connected Task, :class:`.messages.RowsSample`): the newest of each Task in this process
-counts if it is of the current tick; that of a Task in another process (``--deploy
-per-composite``) crosses DDS and comes a tick or more after the tick that triggered it, so it counts
-while it is at most ``remote_rows_age`` old, unless this process switched its composite off. A
-Task the Coordinator deactivated writes rows of none and drops out at once; one that stops computing
-drops out when its rows get too old. It solves the
-prioritised problem with the configured solver (a registered Solver kind, :mod:`..solver.kind`:
-``wdls``, weighted damped least squares with null-space priorities; ``qp``, a cascade of QPs with
-inequalities through qpsolvers) within the joint position and velocity limits, and writes
+counts if it is of the current tick; that of a Task in another process (``--deploy per-composite``)
+crosses DDS and comes a tick or more after the tick that triggered it, so it counts while it is at
+most ``remote_rows_age`` old, unless this process switched its composite off. A Task the
+Coordinator deactivated writes rows of none and drops out at once; one that stops computing drops
+out when its rows get too old. It solves the prioritised problem with the configured solver (a
+registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least squares with
+null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers) within the
+joint position and velocity limits, and writes
 
 * ``command``: the joint velocity setpoints as ``sensor_msgs/JointState`` — ``name`` (the
   program's joints) and ``velocity``; a JointState rather than a bare array so that every
