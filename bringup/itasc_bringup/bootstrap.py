@@ -5,7 +5,8 @@ It validates the application model (a wrong model exits 2 before anything starts
 root composite's Coordinator, Composer and Configurator (configuring the root Configurator with
 the model's configurations), commands ``e_<root>_configure`` and lets the life-cycle bring the
 hierarchy to Running. On ``--duration`` expiry, Ctrl-C, SIGTERM or an operator's ``~/stop`` of any
-composite (``e_stop_requested`` reaching the root) it raises ``e_<root>_stop`` and waits for the
+composite (``e_stop_requested`` reaching the root) it raises ``e_<root>_stop`` (once it heard of
+every composite, see :data:`DISCOVERY_TIMEOUT`) and waits for the
 orderly Stop of the whole hierarchy, and until every composite's final state was seen (and
 recorded), then exits: 0 after an orderly stop from Running, 3 when the run ended in Safety (the
 reason is printed on one line), 4 when it went through Safety and an operator recovered it
@@ -39,6 +40,11 @@ STOP_TIMEOUT = 20.0
 #: How long, after the root stopped, the final states of the other composites may take to arrive
 #: (a composite process's state travels over DDS; a dead one's never comes).
 FINAL_STATES_TIMEOUT = 3.0
+#: How long a stop may wait, once the root was Running, until every composite was heard of: DDS
+#: discovers a composite process at times only after the root is Running (0.3-1.2 s after the
+#: process started, here; longer while this process stalls), and one that stopped and ended before
+#: left the console and the recording without any of its states.
+DISCOVERY_TIMEOUT = 3.0
 #: How often the loop between ticks looks after the run (console, stop requests, the hierarchy's
 #: state, retired nodes) [s]: at 1 kHz doing so after every spin cost a tenth of each period.
 HOUSEKEEPING_PERIOD = 0.01
@@ -218,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
             executor.spin_once(timeout_sec=0.01)  # the root's entities listen (this process's reader)
         raiser.raise_event(event(root.name, CONFIGURE))
 
-        stop_sent_at = last_stop = None
+        stop_sent_at = last_stop = stop_due_at = None
         code = None
         failed_start = False
         housekeeping_at = 0.0
@@ -248,6 +254,10 @@ def main(argv: list[str] | None = None) -> int:
             failed_start = failed_start or outcome.went_through_safety and (
                 running_since is None or min(outcome.in_safety.values()) <= running_since)
             if stop_sent_at is None and (stop_requested or due or failed_start):
+                stop_due_at = stop_due_at or time.monotonic()
+            if stop_sent_at is None and stop_due_at is not None and (
+                    failed_start or running_since is None or not facts.unseen()
+                    or time.monotonic() - stop_due_at > DISCOVERY_TIMEOUT):
                 raiser.raise_event(event(root.name, STOP))
                 stop_sent_at = last_stop = time.monotonic()
                 since = running_since  # a local: the console's lambdas read running_since too
@@ -266,7 +276,9 @@ def main(argv: list[str] | None = None) -> int:
                 code = EXIT_ERROR
                 break
         console.show_safety()
-        warnings = list(outcome.warnings())
+        warnings = list(outcome.warnings()) + [
+            f'no state of composite {name} was received ({composites[name]}/state): DDS did not discover its process '
+            'in time, the console and the recording miss it' for name in facts.unseen()]
         for warning in warnings:
             trace.write(f'warning: {warning}')
             print(f'warning: {warning}', file=sys.stderr)

@@ -130,6 +130,27 @@ def test_a_dead_composite_process_puts_its_parent_in_safety_and_the_stop_stays_o
     assert 'process of composite hold died' in app.err
 
 
+def test_a_stop_right_at_running_waits_until_the_bootstrap_heard_of_every_composite():
+    """DDS discovers a composite process at times only after the root is Running; a Ctrl-C then
+    stopped the hierarchy, and a process that ended 0.5 s after its stop, before this process
+    (stalled, on a loaded machine) discovered it, left the status and the recording without any
+    of its states: the per-composite Ctrl-C test above failed so in about half of the clean-clone
+    CI runs. Here the bootstrap stalls for 2 s during the stop (before: 2 to 5 of 6 runs missed
+    track or hold or both)."""
+    with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--deploy', 'per-composite']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        os.killpg(app.process.pid, signal.SIGINT)
+        app.wait_for_line('[state] app: Active.Stop.Stopping', timeout=30)
+        app.process.send_signal(signal.SIGSTOP)
+        time.sleep(2.0)
+        app.process.send_signal(signal.SIGCONT)
+        assert app.finish(timeout=60) == 0, app.output()
+    sequences = state_sequences(app.out)
+    for composite in ('app', 'program', 'track', 'hold'):
+        assert sequences.get(composite, [''])[-1] == 'Active.Stop.Stopped.NotifyStopped', app.output()
+    assert 'no state of composite' not in app.err, app.output()
+
+
 def test_a_composite_dying_right_after_running_is_a_fault_while_running_not_a_failed_start():
     """The bootstrap looks at its state between housekeeping passes; a Safety right after the root
     reached Running was taken for a failed start (exit 2, '0.0 s in Running') when the pass that

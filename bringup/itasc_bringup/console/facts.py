@@ -177,6 +177,10 @@ class RunFacts:
             self.running_since = stamp
         return transition
 
+    def unseen(self) -> list[str]:
+        """The composites of which no state was received yet."""
+        return [name for name, state in self.states.items() if state == '-']
+
     def on_task(self, task: str, msg) -> None:
         self.tasks[task].add(msg)
 
