@@ -29,10 +29,10 @@ __all__ = ['main']
 
 
 def _cost(create, count: int) -> float:
-    """Milliseconds per endpoint over ``count`` calls of ``create(i)``."""
+    """Milliseconds per endpoint over ``count`` calls of ``create()``."""
     t = time.perf_counter()
-    for i in range(count):
-        create(i)
+    for _ in range(count):
+        create()
     return (time.perf_counter() - t) / count * 1e3
 
 
@@ -57,10 +57,10 @@ def main() -> None:
         node = Node('bench_endpoints', context=context, start_parameter_services=False, enable_rosout=False)
         kept: list = []
         make = {
-            'publisher': lambda i: kept.append(node.create_publisher(Float64, f'/bench/p{len(kept)}', 10)),
-            'subscription': lambda i: kept.append(
+            'publisher': lambda: kept.append(node.create_publisher(Float64, f'/bench/p{len(kept)}', 10)),
+            'subscription': lambda: kept.append(
                 node.create_subscription(Float64, f'/bench/s{len(kept)}', lambda _: None, 10)),
-            'service': lambda i: kept.append(node.create_service(Trigger, f'/bench/v{len(kept)}', lambda _, r: r)),
+            'service': lambda: kept.append(node.create_service(Trigger, f'/bench/v{len(kept)}', lambda _, r: r)),
         }
         try:
             return [_cost(make[kind], args.per_batch) for _ in range(args.batches) for kind in kinds]

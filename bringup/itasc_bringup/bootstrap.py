@@ -255,13 +255,12 @@ def main(argv: list[str] | None = None) -> int:
                 running_since is None or min(outcome.in_safety.values()) <= running_since)
             if stop_sent_at is None and (stop_requested or due or failed_start):
                 stop_due_at = stop_due_at or time.monotonic()
-            if stop_sent_at is None and stop_due_at is not None and (
-                    failed_start or running_since is None or not facts.unseen()
-                    or time.monotonic() - stop_due_at > DISCOVERY_TIMEOUT):
-                raiser.raise_event(event(root.name, STOP))
-                stop_sent_at = last_stop = time.monotonic()
-                since = running_since  # a local: the console's lambdas read running_since too
-                ran_for = time.monotonic() - since if since is not None else None
+                if failed_start or running_since is None or not facts.unseen() \
+                        or time.monotonic() - stop_due_at > DISCOVERY_TIMEOUT:
+                    raiser.raise_event(event(root.name, STOP))
+                    stop_sent_at = last_stop = time.monotonic()
+                    since = running_since  # a local: the console's lambdas read running_since too
+                    ran_for = time.monotonic() - since if since is not None else None
             elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - (last_stop or 0.0) > 0.5:
                 # a fault during the Stop put the root in Safety: the stop still stands (Safety ->
                 # Stop), or the hierarchy would wait in Safety for a command already given
