@@ -73,7 +73,7 @@ def test_approach_object_high_accuracy_control_changes_the_task_controller(tmp_p
     task = '/approach_object/itasc/ApproachObject'
     with Spawned([*BOOTSTRAP, 'approach_object', '--record', str(mcap)]) as app:
         app.wait_for_line('[state] ApproachObject: Active.Run.Running.high_accuracy_control', timeout=120)
-        kp = get_parameter(f'{task}/CC', 'kp')  # as `ros2 param get` would
+        kp = get_parameter(f'{task}/configurator', 'CC.kp')  # as `ros2 param get` would
         app.wait_for_line('[state] itasc: Active.Run.Running.retreat', timeout=60)
         os.killpg(app.process.pid, signal.SIGINT)
         assert app.finish(timeout=60) == 0, app.output()
@@ -107,7 +107,7 @@ def test_pattern_demo_switch_changes_the_track_gain(tmp_path):
     with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--record', str(mcap)]) as app:
         app.wait_for_line('[state] program: Active.Run.Running.precise', timeout=120)
         app.wait_for_line('[status]', timeout=30)  # the switch has been applied meanwhile
-        kp = get_parameter(f'{track}/controller', 'kp')
+        kp = get_parameter(f'{track}/configurator', 'controller.kp')
         os.killpg(app.process.pid, signal.SIGINT)
         assert app.finish(timeout=60) == 0, app.output()
     assert kp == 40.0

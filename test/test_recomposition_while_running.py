@@ -35,6 +35,7 @@ from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.parameter import Parameter, parameter_value_to_python
 from std_srvs.srv import Trigger
 
+from itasc_core.computation.parameters import nest
 from itasc_msgs.srv import Compose
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
@@ -45,6 +46,8 @@ ROOT = '/pick_and_retreat'
 PROGRAM = f'{ROOT}/itasc'
 TASK = f'{PROGRAM}/ApproachObject'
 REMOVED = f'{PROGRAM}/AvoidObstacle'
+#: The Task's Configurator: it serves the parameters of the Task's entities (``CC.kp``).
+CONFIGURATOR = f'{TASK}/configurator'
 #: The swapped-in controller of the model (config/programs/pick_and_retreat.yaml).
 KP, MAX_OUTPUT = 1.0, 0.1
 #: The gain set from outside while it retreats.
@@ -116,13 +119,13 @@ def set_parameter(node_name: str, name: str, value: float) -> SetParametersResul
 
 
 def dump_parameters(node_names: list[str], path: Path) -> None:
-    """What ``ros2 param dump`` writes for ``node_names``: node -> ros__parameters."""
+    """What ``ros2 param dump`` writes for ``node_names``: node -> ros__parameters, dotted names nested."""
     listed = [r.result.names for r in call_services(
         [(ListParameters, f'{name}/list_parameters', ListParameters.Request()) for name in node_names])]
     values = [r.values for r in call_services(
         [(GetParameters, f'{name}/get_parameters', GetParameters.Request(names=list(names)))
          for name, names in zip(node_names, listed)])]
-    dump = {name: {'ros__parameters': {n: parameter_value_to_python(v) for n, v in zip(names, vs)}}
+    dump = {name: {'ros__parameters': nest({n: parameter_value_to_python(v) for n, v in zip(names, vs)})}
             for name, names, vs in zip(node_names, listed, values)}
     path.write_text(yaml.safe_dump(dump))
 
@@ -135,21 +138,21 @@ def session(tmp_path_factory) -> Session:
         app.wait_for_line('[state] itasc: Active.Run.Running.wait_for_gripper', timeout=120)
         graph_before = graph_under(REMOVED)
         refused_swap = compose(TASK, 'other_task')  # a swap whose ports do not fit
-        controller_before = {n: get_parameter(f'{TASK}/CC', n) for n in ('task', 'kind')}
+        controller_before = {n: get_parameter(CONFIGURATOR, f'CC.{n}') for n in ('task', 'kind')}
         unknown_step = compose(PROGRAM, 'no_such_step')
         said = trigger(f'{PROGRAM}/object_grasped')  # the gripper holds the object
         assert said.success, said
         app.wait_for_line('[state] itasc: Active.Run.Running.retreating', timeout=30)
         app.wait_for_line('[state] itasc: Active.Run.Running.away', timeout=30)
-        controller_after = {n: get_parameter(f'{TASK}/CC', n) for n in ('kind', 'kp')}
+        controller_after = {n: get_parameter(CONFIGURATOR, f'CC.{n}') for n in ('kind', 'kp')}
         graph_after = graph_under(REMOVED)
         time.sleep(0.5)
-        set_gain = set_parameter(f'{TASK}/CC', 'kp', NEW_KP)  # ros2 param set .../CC kp 2.0
+        set_gain = set_parameter(CONFIGURATOR, 'CC.kp', NEW_KP)  # ros2 param set .../configurator CC.kp 2.0
         time.sleep(0.5)
-        refused_gain = set_parameter(f'{TASK}/CC', 'kp', -1.0)
+        refused_gain = set_parameter(CONFIGURATOR, 'CC.kp', -1.0)
         time.sleep(0.5)
-        gain_after_refusal = get_parameter(f'{TASK}/CC', 'kp')
-        dump_parameters([f'{TASK}/CC', f'{TASK}/Rows'], tmp / 'dump.yaml')
+        gain_after_refusal = get_parameter(CONFIGURATOR, 'CC.kp')
+        dump_parameters([CONFIGURATOR], tmp / 'dump.yaml')
         stop = trigger(f'{ROOT}/coordinator/stop')
         assert stop.success, stop
         assert app.finish(timeout=60) == 0, app.output()
@@ -160,7 +163,7 @@ def session(tmp_path_factory) -> Session:
 def test_entering_retreat_removes_a_task_and_swaps_a_controller_between_two_ticks(session):
     before, after = session.graph_before, session.graph_after
     assert f'{REMOVED}/CC' in before['nodes'] and f'{REMOVED}/Rows/rows' in before['topics'], before
-    assert f'{REMOVED}/CC/set_parameters' in before['services'], before
+    assert f'{REMOVED}/configurator/set_parameters' in before['services'], before
     assert after == {'nodes': [], 'topics': [], 'services': []}, after
     # the swap whose ports do not fit was refused and changed nothing
     assert not session.refused_swap.success, session.refused_swap

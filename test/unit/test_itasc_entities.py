@@ -21,6 +21,7 @@ from std_msgs.msg import Float64MultiArray
 
 from itasc_core.communication.events import EventListener
 from itasc_core.communication.ports import LocalBus
+from itasc_core.configuration import Configurator
 from itasc_core.entity import CompositeContext
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
@@ -550,27 +551,37 @@ def _call(world, client, future):
 
 
 def test_parameters_are_declared_typed_described_and_bounded_from_the_entitys_model(world):
-    """What ``ros2 param describe`` shows of an entity comes from its parameter model: the type (also
-    of an empty list), the field's docstring and its bounds; a change the model refuses is refused
-    with its reason, one it accepts takes effect."""
+    """What ``ros2 param describe`` shows of an entity (through its composite's Configurator, as
+    ``<entity>.<parameter>``) comes from its parameter model: the type (also of an empty list), the
+    field's docstring and its bounds; a change the model refuses is refused with its reason, one it
+    accepts takes effect. The entity itself offers no parameter services."""
     from rcl_interfaces.msg import ParameterType
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
 
     cc = world.entity(ConstraintControllerEntity, 'CC', task='T', kp=2)
-    world.entity(ConstraintOutputEntity, 'CO', task='T')
-    client = AsyncParameterClient(world.observer, f'{world.ctx.namespace}/CC')
+    co = world.entity(ConstraintOutputEntity, 'CO', task='T')
+    world.add(Configurator(composite=world.ctx, configurations={}, initial=[], entities=lambda: {'CC': cc, 'CO': co}))
+    client = AsyncParameterClient(world.observer, f'{world.ctx.namespace}/configurator')
     assert client.wait_for_services(timeout_sec=5.0)
-    kp, kind = _call(world, client, client.describe_parameters(['kp', 'kind'])).descriptors
+    assert not AsyncParameterClient(world.observer, f'{world.ctx.namespace}/CC').wait_for_services(timeout_sec=0.5)
+    names = _call(world, client, client.list_parameters(['CC'], 1)).result.names
+    assert {'CC.kp', 'CC.kind', 'CC.max_output'} <= set(names) and not any(n.startswith('CO.') for n in names)
+    kp, kind, outputs = _call(world, client, client.describe_parameters(['CC.kp', 'CC.kind', 'CO.outputs'])).descriptors
+    assert kp.name == 'CC.kp' and cc.describe_parameter('kp').name == 'kp'  # the entity's own stays as it was
     assert kp.type == ParameterType.PARAMETER_DOUBLE and 'Proportional gain' in kp.description
     assert (kp.floating_point_range[0].from_value, kp.floating_point_range[0].to_value) == (0.0, math.inf)
     assert kind.type == ParameterType.PARAMETER_STRING and kind.read_only  # another law: a swap, not a set
-    outputs = AsyncParameterClient(world.observer, f'{world.ctx.namespace}/CO')
-    assert outputs.wait_for_services(timeout_sec=5.0)
-    (described,) = _call(world, outputs, outputs.describe_parameters(['outputs'])).descriptors
-    assert described.type == ParameterType.PARAMETER_STRING_ARRAY  # an empty list, typed by the model
-    refused = _call(world, client, client.set_parameters([Parameter('max_output', value=0.0)])).results[0]
+    assert outputs.type == ParameterType.PARAMETER_STRING_ARRAY  # an empty list, typed by the model
+    refused = _call(world, client, client.set_parameters([Parameter('CC.max_output', value=0.0)])).results[0]
     assert not refused.successful and 'max_output: Input should be greater than 0' in refused.reason
     assert cc.controller.max_output == math.inf
-    accepted = _call(world, client, client.set_parameters([Parameter('kp', value=5.0)])).results[0]
+    unknown = _call(world, client, client.set_parameters([Parameter('VKC.kp', value=1.0)])).results[0]
+    assert not unknown.successful and "entities ['CC', 'CO']" in unknown.reason
+    accepted = _call(world, client, client.set_parameters([Parameter('CC.kp', value=5.0)])).results[0]
     assert accepted.successful and cc.controller.kp == 5.0
+    (value,) = _call(world, client, client.get_parameters(['CC.kp'])).values
+    assert value.double_value == 5.0
+    both = _call(world, client, client.set_parameters_atomically([Parameter('CC.kp', value=1.0),
+                                                                   Parameter('CO.outputs', value=['x'])])).result
+    assert not both.successful and 'one entity at a time' in both.reason and cc.controller.kp == 5.0

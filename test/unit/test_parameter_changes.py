@@ -362,19 +362,24 @@ def test_a_change_is_taken_at_once_and_raised_with_old_and_new_value_and_who(con
 
 
 def test_a_dump_becomes_the_named_configuration_that_sets_it():
+    """``ros2 param dump`` of Configurators (nested, as it writes dotted names, or dotted): the
+    controller, weights and priority of a Task, a Monitor's threshold; other entities left out."""
     dump = {
-        '/app/itasc/ApproachObject/CC': {'ros__parameters': {
-            'kind': 'pid', 'kp': 2.0, 'ki': 0.0, 'kd': 0.0, 'max_integral': float('inf'), 'max_output': float('inf'),
-            'task': 'ApproachObject',
-            'use_sim_time': False}},
-        '/app/itasc/ApproachObject/Rows': {'ros__parameters': {'weights': [1.0, 0.5], 'priority': 1, 'task': 'x'}},
-        '/app/itasc/tracking_error': {'ros__parameters': {'condition': 'above', 'threshold': 0.05}},
+        '/app/itasc/ApproachObject/configurator': {'ros__parameters': {
+            'CC': {'kind': 'pid', 'kp': 2.0, 'ki': 0.0, 'kd': 0.0, 'max_integral': float('inf'),
+                   'max_output': float('inf'), 'task': 'ApproachObject'},
+            'Rows': {'weights': [1.0, 0.5], 'priority': 1, 'task': 'x'},
+            'SPG': {'kind': 'fixed', 'pose': {'xyz': [0.0, 0.0, 0.0]}}}},
+        '/app/itasc/configurator': {'ros__parameters': {
+            'tracking_error.condition': 'above', 'tracking_error.threshold': 0.05, 'Solver.kind': 'qp'}},
     }
     assert configuration_of(dump) == {
         'ApproachObject': {'controller': {'kp': 2.0, 'ki': 0.0, 'kd': 0.0}, 'weights': [1.0, 0.5], 'priority': 1},
         'tracking_error': {'threshold': 0.05}}
-    with pytest.raises(ValueError, match='/app/itasc/Solver: a named configuration sets'):
-        configuration_of({'/app/itasc/Solver': {'ros__parameters': {'kind': 'qp', 'damping': 0.1}}})
+    with pytest.raises(ValueError, match="/app/itasc/configurator: a named configuration sets a Task's controller"):
+        configuration_of({'/app/itasc/configurator': {'ros__parameters': {'Solver': {'kind': 'qp', 'damping': 0.1}}}})
+    with pytest.raises(ValueError, match="ApproachObject/CC: expected the dump of a composite's configurator"):
+        configuration_of({'/app/itasc/ApproachObject/CC': {'ros__parameters': {'kind': 'p', 'kp': 2.0}}})
 
 
 def test_a_monitor_switched_on_by_its_event_stays_on_when_its_threshold_is_tuned():

@@ -5,7 +5,7 @@
     itasc-model docs [--out FILE]       write the model reference (default docs/model.md)
     itasc-model configuration DUMP --name NAME
                                         a named configuration from `ros2 param dump` of running
-                                        entities (CC, Rows, Monitors), to paste into the model
+                                        Configurators (CC, Rows, Monitors), to paste into the model
 
 ``check`` exits 2 at the first wrong model, with the message the bootstrap would give (file, path
 inside it, what was expected); nothing is started (no node, no DDS participant).
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     docs = commands.add_parser('docs', help='write the model reference (Markdown)')
     docs.add_argument('--out', default='docs/model.md', help='where (default: %(default)s; - for stdout)')
     configuration = commands.add_parser('configuration',
-                                        help='a named configuration from `ros2 param dump` of running entities')
+                                        help='a named configuration from `ros2 param dump` of Configurators')
     configuration.add_argument('dump', metavar='DUMP', help='the YAML file ros2 param dump wrote')
     configuration.add_argument('--name', required=True, help='the configuration\'s name')
     args = parser.parse_args(argv)

@@ -70,17 +70,16 @@ def _paced(call: Callable) -> Callable:
 class Entity(Node):
     """An rclpy node that belongs to a composite and raises events on its event topic.
 
-    Only an entity with parameters (``parameter_services=True``: a Functional Entity with a
-    parameter model) offers rclpy's parameter services. Each node's six services are twelve DDS
-    endpoints that every later endpoint of the process is matched against: they took about 15 of
-    the 20 ms a node costs to create on a 2-core machine, and made bring-up grow faster than the
-    number of Tasks (a program of 50 Tasks deployed for more than the start-up timeout).
+    No entity offers rclpy's six parameter services: each node's six are twelve DDS endpoints that
+    every later endpoint of the process is matched against, which made bring-up grow with the
+    square of the number of Tasks. The Configurator of each composite serves its entities'
+    parameters instead (:mod:`.configuration.parameter_service`).
     """
 
-    def __init__(self, name: str, *, composite: CompositeContext, parameter_services: bool = False) -> None:
+    def __init__(self, name: str, *, composite: CompositeContext) -> None:
         PACE.gap()
         super().__init__(name, namespace=composite.namespace, parameter_overrides=[_NO_TYPE_DESCRIPTION_SERVICE],
-                         start_parameter_services=parameter_services)
+                         start_parameter_services=False)
         self.composite = composite
         self.entity_name = name
         self._raisers: list[EventRaiser] = []

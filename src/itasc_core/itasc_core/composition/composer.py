@@ -94,7 +94,7 @@ def assemble(*, model: CompositeModel, context: CompositeContext, runtime: Runti
         composite=context,
         configurations=model.configurations,
         initial=model.configure,
-        entities=composer.entity,
+        entities=composer.functional_entities,
     )
     composer.coordinator, composer.configurator = coordinator, configurator
     return composer
@@ -184,9 +184,9 @@ class Composer(Entity):
         elif self._pending:
             self.connect_pending(msg.name)
 
-    def entity(self, name: str):
-        """A deployed entity of this composite by name (for the Configurator)."""
-        return self.entities.get(name) or self.monitors.get(name)
+    def functional_entities(self) -> dict[str, FunctionalEntity]:
+        """The entities and Monitors of this composite deployed now, by name (for the Configurator)."""
+        return {**self.entities, **self.monitors}
 
     def faults_still_there(self, sources: list[str]) -> list[str]:
         """Why the faults the entities ``sources`` (node names) raised are still there: each is asked

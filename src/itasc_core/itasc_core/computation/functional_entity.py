@@ -3,7 +3,8 @@
 A Functional Entity declares its ports with metadata (paper Listing 1) as a pure function of its
 parameters, so that a Composer can check connections from the model alone, in any process. Its
 parameters are ROS 2 parameters, typed by one pydantic model per kind (:mod:`.parameters`), set by
-the Configurator or from outside (``ros2 param set``), every change and refusal raised as an event;
+the Configurator or from outside (``ros2 param set`` through the Configurator's services,
+:mod:`..configuration.parameter_service`), every change and refusal raised as an event;
 its ``update`` is called by the Scheduler. It knows no other entity: it reads
 its input ports, writes its output ports and raises events (§3.1, boundary of knowledge).
 """
@@ -40,7 +41,7 @@ class FunctionalEntity(Entity):
     cause: str = 'set from outside'
 
     def __init__(self, name: str, *, composite: CompositeContext, parameters: Mapping[str, Any] | None = None) -> None:
-        super().__init__(name, composite=composite, parameter_services=bool(self.Parameters.model_fields))
+        super().__init__(name, composite=composite)
         self.inputs: dict[str, InputPort] = {}
         self.outputs: dict[str, OutputPort] = {}
         try:
@@ -74,6 +75,11 @@ class FunctionalEntity(Entity):
         except BaseException:
             self.destroy_node()  # a node that failed to construct must not stay in the graph
             raise
+
+    @property
+    def parameter_names(self) -> list[str]:
+        """The entity's parameters (its parameter model's fields, nested ones dotted)."""
+        return list(self._types)
 
     @staticmethod
     def port_topic(namespace: str, entity: str, port: str) -> str:

@@ -7,17 +7,21 @@ A configuration is a set of ROS 2 parameter values per entity of this composite,
 it applies the composite's initial configurations and answers ``e_<composite>_entities_configured``.
 The Configurator itself is configured by whoever creates it (the parent's Composer, or the
 bootstrap for the root, §5.1): it is handed its configurations at construction.
+
+It also serves the parameters of its composite's entities to ``ros2 param``, as
+``<entity>.<parameter>`` on its own node (:mod:`.parameter_service`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Callable
-
 
 from ..communication.event_names import (APPLIED, CONFIGURE_ENTITIES, CONFIGURE_FAILED, ENTITIES_CONFIGURED,
                                           FAILED, event, named)
 from ..computation.functional_entity import FunctionalEntity
 from ..entity import CompositeContext, Entity
+from .parameter_service import EntityParameters
 
 __all__ = ['Configurator']
 
@@ -33,12 +37,13 @@ class Configurator(Entity):
         composite: CompositeContext,
         configurations: dict[str, Configuration],
         initial: list[str],
-        entities: Callable[[str], FunctionalEntity | None],
+        entities: Callable[[], Mapping[str, FunctionalEntity]],
     ) -> None:
         super().__init__('configurator', composite=composite)
         self.configurations = dict(configurations)
         self.initial = list(initial)
         self._entities = entities
+        self.parameters = EntityParameters(self, entities=entities)
         self.applied: list[str] = []
         #: The event of each configuration (``e_<configuration>``).
         self._events_of = {named(c): c for c in self.configurations}
@@ -68,7 +73,7 @@ class Configurator(Entity):
     def apply(self, name: str) -> str | None:
         """Apply configuration ``name``; return why it failed, or None."""
         for entity_name, values in self.configurations[name].items():
-            entity = self._entities(entity_name)
+            entity = self._entities().get(entity_name)
             if entity is None:
                 return f"configuration '{name}': entity '{entity_name}' is not deployed"
             try:
