@@ -85,7 +85,7 @@ def run_once(app: str, *, visualization: bool, seconds: float, settle: float, ra
     def start(node, composer) -> None:  # exactly what the bootstrap starts
         if visualization:
             from itasc_bringup.visualization import start_visualization
-            end_visualization[0] = start_visualization(app, model=spec, node=node, composer=composer)
+            end_visualization[0] = start_visualization(app, model=spec, node=node, composer=composer).end
     running = run_application(spec, before_configure=start)
     executor, composer = running.executor, running.composer
     spin_for(executor, settle)

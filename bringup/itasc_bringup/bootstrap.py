@@ -217,14 +217,16 @@ def main(argv: list[str] | None = None) -> int:
         raiser = EventRaiser(node, topic=root.events_topic)
         composer = bring_up(model=model, context=root, runtime=runtime)
         coordinator = composer.coordinator
-        from .visualization import start_visualization  # robot_description, TF, markers, /diagnostics
-        start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
+        # robot_description, TF, markers, /diagnostics
+        from .visualization import FIRST_DRAWING_TIMEOUT, start_visualization
+        visualization = start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
 
         while raiser.publisher.get_subscription_count() < 1 and not stop_requested:
             executor.spin_once(timeout_sec=0.01)  # the root's entities listen (this process's reader)
         raiser.raise_event(event(root.name, CONFIGURE))
 
         stop_sent_at = last_stop = stop_due_at = None
+        undrawn: list[str] = []
         code = None
         failed_start = False
         housekeeping_at = 0.0
@@ -269,13 +271,16 @@ def main(argv: list[str] | None = None) -> int:
             if state.endswith('NotifyStopped'):
                 _await_final_states(executor, facts=facts, outcome=outcome, recorder=recorder,
                                     composites=composites)
+                if recorder is not None and not _await_first_drawing(executor, visualization, recorder):
+                    undrawn.append('the recording holds no 3-D scene: the visualization process drew nothing '
+                                   f'within {FIRST_DRAWING_TIMEOUT:g} s of its start')
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
                 code = EXIT_ERROR
                 break
         console.show_safety()
-        warnings = list(outcome.warnings()) + [
+        warnings = list(outcome.warnings()) + undrawn + [
             f'no state of composite {name} was received ({composites[name]}/state): DDS did not discover its process '
             'in time, the console and the recording miss it' for name in facts.unseen()]
         for warning in warnings:
@@ -329,6 +334,18 @@ def _await_final_states(executor, *, facts, outcome, recorder, composites: dict[
     deadline = time.monotonic() + FINAL_STATES_TIMEOUT
     while not all(map(final, composites)) and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.01)
+
+
+def _await_first_drawing(executor, visualization, recorder) -> bool:
+    """A short run may end before the visualization process drew the scene once (its imports take
+    seconds on a loaded machine): spin until the recording holds it, at most until
+    :data:`~.visualization.FIRST_DRAWING_TIMEOUT` after the process started (the feed keeps the
+    last samples, so it draws the final state). False if the recording holds no scene although a
+    visualization process was started."""
+    while not visualization.drawn(recorder):
+        executor.spin_once(timeout_sec=0.01)
+        recorder.drain()
+    return visualization.markers is None or recorder.last(visualization.markers) is not None
 
 
 def _make_console(args: argparse.Namespace, **kwargs):

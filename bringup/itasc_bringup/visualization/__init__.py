@@ -8,6 +8,11 @@ node (they read the Timer), robot_description, TF and markers in a process of th
 (:mod:`.node`), off the control path. Neither subscribes to a topic the tick publishes: they take
 the newest samples of the output ports in this process when they draw (:mod:`.feed`), so the
 control loop pays nothing per tick for them.
+
+The visualization process is a new interpreter: on a loaded 2-core machine its imports take
+seconds, longer than a short run. A recording shows the run in 3-D from the file alone, so
+the bootstrap waits, before it closes a recording, until the scene was drawn once
+(:meth:`Visualization.drawn`), at most :data:`FIRST_DRAWING_TIMEOUT` after the process started.
 """
 
 from __future__ import annotations
@@ -17,15 +22,40 @@ import ctypes
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import yaml
 
-__all__ = ['start_visualization', 'GLOBAL_TOPICS']
+__all__ = ['start_visualization', 'Visualization', 'GLOBAL_TOPICS', 'FIRST_DRAWING_TIMEOUT']
 
 #: Topics outside the application's namespace a recording must hold (type, QoS name).
 GLOBAL_TOPICS = {'/tf': 'tf2_msgs/msg/TFMessage', '/tf_static': 'tf2_msgs/msg/TFMessage',
                  '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
+
+
+#: How long after its start the visualization process may take to draw the scene once (seconds).
+FIRST_DRAWING_TIMEOUT = 10.0
+
+
+@dataclass
+class Visualization:
+    """The visualization of a run: ``end()`` ends it; ``drawn(recorder)`` says whether ``recorder``
+    holds the scene (``/tf_static``, ``/tf`` and the markers) or never will (no process, it died, or it is past
+    :data:`FIRST_DRAWING_TIMEOUT`)."""
+
+    end: Callable[[], None]
+    process: subprocess.Popen | None = None
+    markers: str | None = None
+    started_at: float = 0.0
+
+    def drawn(self, recorder) -> bool:
+        if self.process is None or self.markers is None or self.process.poll() is not None:
+            return True
+        if time.monotonic() - self.started_at > FIRST_DRAWING_TIMEOUT:
+            return True
+        return all(recorder.last(topic) is not None for topic in (self.markers, '/tf', '/tf_static'))
 
 
 def _end_with_parent() -> None:
@@ -39,17 +69,18 @@ def _is_application(path) -> bool:
     return isinstance(data, dict) and 'application' in data
 
 
-def start_visualization(app: str, *, model, node, composer, recorder=None) -> Callable[[], None]:
+def start_visualization(app: str, *, model, node, composer, recorder=None) -> Visualization:
     """Diagnostics of every composite of ``model`` on ``node``; for an iTaSC application, the
-    visualization process; ``recorder`` records the global topics. Returns what ends the process
-    (also called when this process exits)."""
+    visualization process; ``recorder`` records the global topics and the markers. Its ``end()`` is
+    also called when this process exits."""
     from itasc_core.composition.model import walk
 
     from ..apps import resolve_app
     from ..model import load_application
     from .diagnostics import Diagnostics
     from .feed import FeedWriter, LatestSamples, display_topics
-    from .node import DISPLAY_RATE, LATCHED_QOS, TF_QOS
+    from .node import DISPLAY_RATE, LATCHED_QOS, TF_QOS, markers_topic
+    from itasc_core.communication.qos import DATA_QOS
     from itasc_msgs.msg import SolverStatus
 
     if recorder is not None:
@@ -61,8 +92,12 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Ca
                 solvers=LatestSamples(node, dict.fromkeys(solvers, SolverStatus)))  # lives as long as the node
     path = resolve_app(app)
     if not _is_application(path):
-        return lambda: None  # a composition model of the pattern itself: no robots to show
+        return Visualization(end=lambda: None)  # a composition model of the pattern itself: no robots to show
     topics = display_topics(load_application(path), f'/{model.name}')
+    markers = markers_topic(f'/{model.name}')
+    if recorder is not None:
+        recorder.record(markers, 'visualization_msgs/msg/MarkerArray', qos=DATA_QOS)
+    started_at = time.monotonic()
     process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve()),
                                 '--feed'], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                preexec_fn=_end_with_parent)
@@ -79,4 +114,4 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Ca
                 process.wait()
         process.stdin.close()  # nothing is buffered in it: the feed writes to its descriptor
     atexit.register(end)
-    return end
+    return Visualization(end=end, process=process, markers=markers, started_at=started_at)

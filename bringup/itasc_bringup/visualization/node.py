@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 import rclpy
 from geometry_msgs.msg import TransformStamped
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -107,7 +108,8 @@ class Visualizer(Node):
         self._static = self.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
         stamp = self.get_clock().now().to_msg()
         self._static.publish(TFMessage(transforms=[transform_msg(e, stamp) for e in self.tree.static()]))
-        self._tf = self.create_publisher(TFMessage, '/tf', TF_QOS)
+        self._tf = self.create_publisher(TFMessage, '/tf', TF_QOS,
+                                         event_callbacks=PublisherEventCallbacks(matched=self._on_tf_reader))
         self._markers = self.create_publisher(MarkerArray, markers_topic(namespace), DATA_QOS)
 
         self._joints: dict[str, JointState] = {}
@@ -135,6 +137,15 @@ class Visualizer(Node):
             for topic, msg_type in topics.items():
                 self.create_subscription(msg_type, topic, self._handlers[topic], DATA_QOS)
         self._timer = self.create_timer(1.0 / rate, self._display)
+
+    def _on_tf_reader(self, status) -> None:
+        """A reader of ``/tf`` joined (a recorder, RViz): the next drawing sends it every robot's
+        transforms, however long the robots have stood still. ``/tf`` is volatile and sent on a
+        change of a joint state only (tf2 takes a repeated stamp for an error), so a reader matched
+        after the last change (discovery is late on a loaded machine, or the run has ended) would
+        otherwise never learn where the robots are."""
+        if status.current_count_change > 0:
+            self._shown.clear()
 
     def _set_object(self, name: str, pose: pin.SE3) -> None:
         self.tree.objects[name] = pose
