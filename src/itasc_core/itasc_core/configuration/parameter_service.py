@@ -87,30 +87,25 @@ class EntityParameters:
         return (f"no parameter '{name}' in composite {self._composite}: parameters are named "
                 f"<entity>.<parameter>, entities {with_parameters}")
 
-    # rclpy's services answer a request naming any unknown parameter with no values at all.
+    def _owners(self, names) -> list[tuple[FunctionalEntity, str]]:
+        """The owner of every parameter of ``names``; none at all if one is unknown (rclpy's services
+        answer a request naming an unknown parameter with no values)."""
+        owners = [self._owner(name) for name in names]
+        return [] if None in owners else owners  # type: ignore[return-value]
 
     def _describe(self, request, response):
-        descriptors = []
-        for name in request.names:
-            owner = self._owner(name)
-            if owner is None:
-                return response
-            descriptor = copy.deepcopy(owner[0].describe_parameter(owner[1]))
+        for name, (entity, own) in zip(request.names, self._owners(request.names)):
+            descriptor = copy.deepcopy(entity.describe_parameter(own))
             descriptor.name = name
-            descriptors.append(descriptor)
-        response.descriptors = descriptors
+            response.descriptors.append(descriptor)
         return response
 
     def _get(self, request, response):
-        owners = [self._owner(name) for name in request.names]
-        if all(owners):
-            response.values = [entity.get_parameter(p).get_parameter_value() for entity, p in owners]
+        response.values = [entity.get_parameter(p).get_parameter_value() for entity, p in self._owners(request.names)]
         return response
 
     def _get_types(self, request, response):
-        owners = [self._owner(name) for name in request.names]
-        if all(owners):
-            response.types = [entity.get_parameter_type(p) for entity, p in owners]
+        response.types = [entity.get_parameter_type(p) for entity, p in self._owners(request.names)]
         return response
 
     def _list(self, request, response):
