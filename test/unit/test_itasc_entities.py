@@ -585,3 +585,32 @@ def test_parameters_are_declared_typed_described_and_bounded_from_the_entitys_mo
     both = _call(world, client, client.set_parameters_atomically([Parameter('CC.kp', value=1.0),
                                                                    Parameter('CO.outputs', value=['x'])])).result
     assert not both.successful and 'one entity at a time' in both.reason and cc.controller.kp == 5.0
+
+
+def test_a_parameter_change_is_announced_as_the_configurators_on_parameter_events(world):
+    """Tools that show a node's parameters live (rqt_reconfigure, Foxglove's parameter panel) list
+    them with the node's services and follow ``/parameter_events`` for that node: a change, from
+    ``ros2 param set`` or a named configuration, reaches them as ``<entity>.<parameter>`` of the
+    Configurator that lists it; a refused change does not."""
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.parameter_event_handler import ParameterEventHandler
+
+    cc = world.entity(ConstraintControllerEntity, 'CC', task='T', kp=2)
+    configurator = world.add(Configurator(composite=world.ctx, configurations={'fast': {'CC': {'kp': 8.0}}},
+                                          initial=[], entities=lambda: {'CC': cc}))
+    name = configurator.get_fully_qualified_name()
+    heard: list[float] = []
+    handler = ParameterEventHandler(world.observer)
+    handle = handler.add_parameter_callback('CC.kp', name, lambda p: heard.append(p.value.double_value))
+    client = AsyncParameterClient(world.observer, name)
+    assert client.wait_for_services(timeout_sec=5.0)
+    events, writers = handler.parameter_event_subscription, world.observer.count_publishers
+    assert world.spin_until(lambda: events.get_publisher_count() >= writers('/parameter_events'))  # all matched
+    assert _call(world, client, client.set_parameters([Parameter('CC.kp', value=5.0)])).results[0].successful
+    assert world.spin_until(lambda: heard == [5.0]), heard
+    assert not _call(world, client, client.set_parameters([Parameter('CC.kp', value=-1.0)])).results[0].successful
+    assert configurator.apply('fast') is None
+    assert world.spin_until(lambda: heard == [5.0, 8.0]), heard
+    assert cc.controller.kp == 8.0
+    handler.remove_parameter_callback(handle)

@@ -9,7 +9,8 @@ The Configurator itself is configured by whoever creates it (the parent's Compos
 bootstrap for the root, §5.1): it is handed its configurations at construction.
 
 It also serves the parameters of its composite's entities to ``ros2 param``, as
-``<entity>.<parameter>`` on its own node (:mod:`.parameter_service`).
+``<entity>.<parameter>`` on its own node, and announces every change of them on
+``/parameter_events`` as its own (:mod:`.parameter_service`).
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ class Configurator(Entity):
                 return f"configuration '{name}' on {entity_name}: {err}"
             with entity.set_by(f'configuration {name}'):
                 results = entity.set_parameters(parameters)
+            self.parameters.announce(entity_name, [p for p, r in zip(parameters, results) if r.successful])
             for result in results:
                 if not result.successful:
                     return f"configuration '{name}' on {entity_name}: {result.reason}"

@@ -13,7 +13,10 @@ the six once and serves each entity's parameters as ``<entity>.<parameter>``::
 Each request is answered by the entity itself, as its own services would have: rclpy's checks of
 type, range and read-only, then the entity's parameter model; a refusal's reason reaches the caller
 and the recording (``e_<entity>_parameter_refused``), a change is raised as
-``e_<entity>_parameter_set``.
+``e_<entity>_parameter_set``. A change, this way or by a named configuration, is also announced on
+``/parameter_events`` as the Configurator's own (:meth:`EntityParameters.announce`), so that what
+lists the parameters with its services and follows them there (rqt_reconfigure, Foxglove's parameter
+panel, rclpy's ``ParameterEventHandler``) sees it live.
 """
 
 from __future__ import annotations
@@ -22,13 +25,13 @@ import copy
 from collections.abc import Mapping
 from typing import Callable
 
-from rcl_interfaces.msg import ListParametersResult, SetParametersResult
+from rcl_interfaces.msg import ListParametersResult, ParameterEvent, SetParametersResult
 from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes, ListParameters,
                                 SetParameters, SetParametersAtomically)
 from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.node import Node
 from rclpy.parameter import PARAMETER_SEPARATOR_STRING, Parameter
-from rclpy.qos import qos_profile_parameters
+from rclpy.qos import qos_profile_parameter_events, qos_profile_parameters
 
 from ..computation.functional_entity import FunctionalEntity
 
@@ -64,7 +67,9 @@ class EntityParameters:
 
     def __init__(self, node: Node, *, entities: Callable[[], Mapping[str, FunctionalEntity]]) -> None:
         self._entities = entities
+        self._node = node
         self._composite = node.get_namespace()
+        self._events = node.create_publisher(ParameterEvent, '/parameter_events', qos_profile_parameter_events)
         for kind, name, callback in (
                 (DescribeParameters, 'describe_parameters', self._describe),
                 (GetParameters, 'get_parameters', self._get),
@@ -73,6 +78,16 @@ class EntityParameters:
                 (SetParameters, 'set_parameters', self._set),
                 (SetParametersAtomically, 'set_parameters_atomically', self._set_atomically)):
             node.create_service(kind, f'~/{name}', callback, qos_profile=qos_profile_parameters)
+
+    def announce(self, entity: str, parameters: list[Parameter]) -> None:
+        """Tell ``/parameter_events`` that the entity ``entity`` took ``parameters`` (its own names),
+        as the change of ``<entity>.<parameter>`` on the Configurator's node."""
+        if not parameters:
+            return
+        self._events.publish(ParameterEvent(
+            stamp=self._node.get_clock().now().to_msg(), node=self._node.get_fully_qualified_name(),
+            changed_parameters=[Parameter(f'{entity}{PARAMETER_SEPARATOR_STRING}{p.name}', p.type_, p.value)
+                                .to_parameter_msg() for p in parameters]))
 
     def _owner(self, name: str) -> tuple[FunctionalEntity, str] | None:
         """The entity that holds the parameter ``<entity>.<parameter>``, and its own name for it."""
@@ -124,11 +139,14 @@ class EntityParameters:
             missing = next(p.name for p, owner in zip(parameters, owners) if owner is None)
             return SetParametersResult(successful=False, reason=self._unknown(missing))
         entity = known[0][0]
+        own = [Parameter(name, p.type_, p.value) for p, (_, name) in zip(parameters, known)]
         try:
-            return entity.set_parameters_atomically(
-                [Parameter(own, p.type_, p.value) for p, (_, own) in zip(parameters, known)])
+            result = entity.set_parameters_atomically(own)
         except ParameterNotDeclaredException as err:
             return SetParametersResult(successful=False, reason=str(err))
+        if result.successful:
+            self.announce(entity.entity_name, own)
+        return result
 
     def _set(self, request, response):
         response.results = [self._set_one_entity([Parameter.from_parameter_msg(p)]) for p in request.parameters]
