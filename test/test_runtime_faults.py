@@ -15,6 +15,7 @@ the time waiting for a CPU; a storm raised slowly without such waiting fails.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sys
@@ -64,6 +65,19 @@ def test_a_killed_composite_process_is_detected_within_100_ms_and_the_robot_held
     held = [m for m in run['/approach_object/Driver_panda/joint_state'] if safety + 0.05 < m._sent < stopping]
     assert len(held) > 50 and all(not np.any(m.velocity) for m in held)
     assert all(np.array_equal(m.position, held[0].position) for m in held)
+
+
+def test_a_run_shorter_than_the_drivers_grace_names_the_driver_that_never_reported(tmp_path):
+    """With no driver running, a run that ends before the silent Driver's grace (5 s for its first
+    joint state) is over does not go to Safety, and the robot never moved: the end of the run says
+    which Driver's data never came, on the console and in the summary, instead of a clean report."""
+    summary = tmp_path / 'summary.json'
+    with Spawned([*BOOTSTRAP, 'approach_object_ros_driver', '--duration', '2', '--summary-json', str(summary)]) as run:
+        assert run.finish(timeout=120) == 0, run.output()
+    warning = ('e_Driver_panda_silent_nothing_received from /approach_object_ros_driver/Driver_panda_silent: '
+               'nothing came on /approach_object_ros_driver/Driver_panda/joint_state')
+    assert warning in run.output(), run.output()
+    assert any(w.startswith(warning) for w in json.loads(summary.read_text())['warnings']), summary.read_text()
 
 
 def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):

@@ -1,8 +1,8 @@
 """How a run went, as the bootstrap tells it (paper §6.1 Safety; §7.2 events carry their source).
 
 Listens to the event topic of every composite of the model for faults: ``e_emergency`` (the
-priority event that puts a composite in Safety), failed life-cycle steps (``_failed``) and refused
-connections. The first fault whose detail says what happened is the reason of a Safety: the
+priority event that puts a composite in Safety), failed life-cycle steps (``_failed``), refused
+connections and Monitors that never got their data (``_nothing_received``). The first fault whose detail says what happened is the reason of a Safety: the
 events raised on its way up the hierarchy carry no detail of their own. It also tells which
 composites a Composer stopped on behalf of a dead composite process, whose own final state can
 therefore never come; whether an operator asked for the stop (``e_stop_requested``, from any
@@ -24,7 +24,8 @@ from typing import Iterable
 
 from rclpy.node import Node
 
-from itasc_core.communication.event_names import CONNECTION_REFUSED, SAFETY_EVENT, STOP_REQUESTED, STOPPED, owner_of
+from itasc_core.communication.event_names import (CONNECTION_REFUSED, NOTHING_RECEIVED, SAFETY_EVENT, STOP_REQUESTED,
+                                                  STOPPED, owner_of)
 from itasc_core.communication.events import EventListener, events_topic
 
 __all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY', 'EXIT_RECOVERED']
@@ -52,7 +53,8 @@ class Fault:
 
 
 def _is_fault(name: str) -> bool:
-    return name == SAFETY_EVENT or name.endswith(('_failed', f'_{CONNECTION_REFUSED}', '_timeout'))
+    return name == SAFETY_EVENT or name.endswith(
+        ('_failed', f'_{CONNECTION_REFUSED}', '_timeout', f'_{NOTHING_RECEIVED}'))
 
 
 class RunOutcome:

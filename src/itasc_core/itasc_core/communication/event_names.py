@@ -31,7 +31,7 @@ __all__ = [
     'CHILD_ADDED', 'CHILD_REMOVED', 'BIND', 'CHECK_FAULTS', 'FAULTS_CHECKED', 'RECOVERING', 'ANSWERS',
     # entities switched by the Coordinator, configurations, robots
     'ACTIVATE', 'DEACTIVATE', 'ON', 'OFF', 'APPLIED', 'FAILED', 'PARAMETER_SET', 'PARAMETER_REFUSED', 'JOINTS_MISSING',
-    'SOLVER_STATUSES',
+    'NOTHING_RECEIVED', 'SOLVER_STATUSES',
 ]
 
 #: The event that puts a composite (and its parent, where the application says so) into Safety.
@@ -95,6 +95,9 @@ APPLIED, FAILED = 'applied', 'failed'
 PARAMETER_SET, PARAMETER_REFUSED = 'parameter_set', 'parameter_refused'
 #: A robot's Driver does not report some of its joints (``e_<robot>_joints_missing``).
 JOINTS_MISSING = 'joints_missing'
+#: A Monitor of the arrival of data stopped having watched its input for longer than its timeout with
+#: nothing ever coming (``e_<monitor>_nothing_received``): the run ended within its grace for a first sample.
+NOTHING_RECEIVED = 'nothing_received'
 #: What the Solver reports as ``e_solver_<status>``.
 SOLVER_STATUSES = ('ok', 'singular', 'infeasible', 'saturated')
 

@@ -19,6 +19,7 @@ from pydantic import Field
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
+from ..communication.event_names import NOTHING_RECEIVED, event
 from ..communication.ports import InputPort, PortSpec
 from ..entity import CompositeContext
 from ..kinds import with_kind
@@ -158,6 +159,20 @@ class Monitor(FunctionalEntity):
             self.raised += 1
             self.raise_event(self.event, detail=f'{self.entity_name}: {self.condition_name} on {self.field or "value"}')
         self._holding = holds
+
+    def disengage(self) -> None:
+        """Stopping: a Monitor of the arrival of data (``stale``) that watched for longer than its
+        timeout and never got a sample says so (``e_<monitor>_nothing_received``), since its grace
+        for a first sample may outlast a short run, which then ends without a fault (e.g. a Driver
+        whose driver never reported)."""
+        port = self.watch
+        if not self.enabled or self.condition.reads_values or self._timeout is None or self._since is None \
+                or port.received or self.raised:
+            return
+        watched = time.monotonic() - self._since
+        if watched > self._timeout:
+            self.raise_event(event(self.entity_name, NOTHING_RECEIVED),
+                             detail=f'nothing came on {", ".join(port.sources)} in the {watched:.1f} s it watched')
 
     def fault_persists(self) -> str | None:
         """Whether the condition still holds, on the data that arrived until now (the Scheduler runs
