@@ -6,6 +6,7 @@ field is in the recording."""
 from __future__ import annotations
 
 import json
+import os
 import re
 from bisect import bisect_right
 import subprocess
@@ -185,7 +186,7 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
 
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
-    from processes import Spawned
+    from processes import Spawned, started_here
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import Float64MultiArray
@@ -215,6 +216,9 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
         with (Spawned([sys.executable, '-m', 'itasc_drivers.fake_ros2_control']) as driver,
               Spawned([*BOOTSTRAP, app]) as run):  # no --duration: seeing it run may take seconds of discovery
             assert spin_until(root_running, 120), run.output()
+            # the display yields the CPU to the control loop (DISPLAY_NICENESS): `ps -o ni` shows it
+            (display,) = started_here(command='itasc_bringup.visualization.node')
+            assert os.getpriority(os.PRIO_PROCESS, display) == os.getpriority(os.PRIO_PROCESS, run.process.pid) + 10
             # a driver killed before the application heard it would get the start-up grace (5 s), not
             # the silence timeout: the two processes find each other over DDS in seconds on a busy machine
             running_at = time.monotonic()
