@@ -2,8 +2,9 @@
 
 Listens to the event topic of every composite of the model for faults: ``e_emergency`` (the
 priority event that puts a composite in Safety), failed life-cycle steps (``_failed``), refused
-connections and Monitors that never got their data (``_nothing_received``). The first fault whose detail says what happened is the reason of a Safety: the
-events raised on its way up the hierarchy carry no detail of their own. It also tells which
+connections and Monitors that never got their data (``_nothing_received``). The first fault
+whose detail says what happened is the reason of a Safety: the events raised on its way up the
+hierarchy carry no detail of their own. It also tells which
 composites a Composer stopped on behalf of a dead composite process, whose own final state can
 therefore never come; whether an operator asked for the stop (``e_stop_requested``, from any
 composite's ``~/stop``); and whether every Safety was recovered (``~/recover``: the composite
