@@ -1,14 +1,13 @@
 """How a run went, as the bootstrap tells it (paper §6.1 Safety; §7.2 events carry their source).
 
-Listens to the event topic of every composite of the model for faults: ``e_emergency`` (the
-priority event that puts a composite in Safety), failed life-cycle steps (``_failed``), refused
-connections and Monitors that never got their data (``_nothing_received``). The first fault
-whose detail says what happened is the reason of a Safety: the events raised on its way up the
-hierarchy carry no detail of their own. It also tells which
-composites a Composer stopped on behalf of a dead composite process, whose own final state can
-therefore never come; whether an operator asked for the stop (``e_stop_requested``, from any
-composite's ``~/stop``); and whether every Safety was recovered (``~/recover``: the composite
-reached Running again).
+Listens to the event topic of every composite of the model for faults: ``e_emergency`` (the priority
+event that puts a composite in Safety), failed life-cycle steps (``_failed``), refused connections
+and Monitors that never got their data (``_nothing_received``). The first fault whose detail says
+what happened is the reason of a Safety: the events raised on its way up the hierarchy carry no
+detail of their own. It also tells which composites a Composer stopped on behalf of a dead composite
+process, whose own final state can therefore never come; whether an operator asked for the stop
+(``e_stop_requested``, from any composite's ``~/stop``); and whether every Safety was recovered
+(``~/recover``: the composite reached Running again).
 
 Exit codes of the bootstrap: :data:`EXIT_OK` for an orderly stop from Running, :data:`EXIT_SAFETY`
 when the run ended in Safety (or stopped from it), :data:`EXIT_RECOVERED` when it went through
