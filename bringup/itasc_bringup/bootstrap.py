@@ -219,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
         coordinator = composer.coordinator
         # robot_description, TF, markers, /diagnostics
         from .visualization import FIRST_DRAWING_TIMEOUT, start_visualization
-        visualization = start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder)
+        visualization = start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder,
+                                            observers=[watch.observer])
 
         while raiser.publisher.get_subscription_count() < 1 and not stop_requested:
             executor.spin_once(timeout_sec=0.01)  # the root's entities listen (this process's reader)

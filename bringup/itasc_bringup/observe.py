@@ -36,6 +36,8 @@ class Observer:
         self._wanted: dict[str, Callback] = {}
         self._tapped: dict[str, OutputPort] = {}
         self._readers: dict[str, Any] = {}
+        #: Who else gets what a DDS reader made by :meth:`samples` receives (:meth:`share`), by topic.
+        self._sharing: dict[str, list[Callback]] = {}
         self._bus = LocalBus.of(node.context)
         self._unwatch = self._bus.watch(self._appeared)
 
@@ -51,9 +53,28 @@ class Observer:
 
     def samples(self, topic: str, msg_type: type, callback: Callback, *, qos: QoSProfile) -> None:
         """Every sample of ``topic`` to ``callback``: tapped, or over DDS, each message turned into
-        its sample."""
-        self.observe(topic, callback, subscribe=lambda: self._node.create_subscription(
-            msg_type, topic, lambda msg: callback(topic, as_sample(msg)), qos))
+        its sample (once, for ``callback`` and whoever :meth:`share` s the reader)."""
+        def receive(msg: Any) -> None:
+            sample = as_sample(msg)
+            callback(topic, sample)
+            for other in self._sharing.get(topic, ()):
+                other(topic, sample)
+
+        def subscribe() -> Any:
+            self._sharing[topic] = []
+            return self._node.create_subscription(msg_type, topic, receive, qos)
+        self.observe(topic, callback, subscribe=subscribe)
+
+    def share(self, topic: str, callback: Callback) -> bool:
+        """Hand what this observer's DDS reader of ``topic`` (made by :meth:`samples`) receives to
+        ``callback`` too, so that another tool of the process needs no reader of its own (each one
+        takes and converts every sample of a remote topic, at the tick rate); False if there is no
+        such reader."""
+        others = self._sharing.get(topic)
+        if others is None or topic not in self._readers:
+            return False
+        others.append(callback)
+        return True
 
     def local(self, topic: str) -> bool:
         """Whether ``topic``'s output is in this process."""
@@ -76,6 +97,7 @@ class Observer:
         reader = self._readers.pop(port.topic, None)
         if reader is not None:
             self._node.destroy_subscription(reader)
+            self._sharing.pop(port.topic, None)  # those read the output port itself now
         port.tap(self._wanted[port.topic])
         self._tapped[port.topic] = port
 
@@ -86,3 +108,4 @@ class Observer:
             port.untap(self._wanted[topic])
         self._tapped.clear()
         self._wanted.clear()
+        self._sharing.clear()

@@ -130,3 +130,50 @@ def test_a_gone_reader_ends_the_feed_and_a_gone_writer_is_seen(feed):
         assert reader.read() == [] and reader.closed
     finally:
         os.close(read_fd)
+
+
+def test_the_display_takes_a_remote_topic_from_the_consoles_reader_instead_of_reading_it_again():
+    """A Task's state published in another process (here another ROS context: another LocalBus,
+    real DDS between them) is read by the console's observer; the display's LatestSamples takes the
+    newest from that reader: the process holds one reader of the topic, not two that would each
+    take and convert every sample at the tick rate, and the display still sees the newest state."""
+    import time
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from itasc_bringup.console.watch import WATCH_QOS
+    from itasc_bringup.observe import Observer
+
+    here, there = Context(), Context()
+    rclpy.init(context=here)
+    rclpy.init(context=there)
+    node, task = rclpy.create_node('bootstrap', context=here), rclpy.create_node('task', context=there)
+    try:
+        publisher = task.create_publisher(TaskState, ROWS, 10)
+        executor = SingleThreadedExecutor(context=here)
+        executor.add_node(node)
+
+        def spin_until(condition) -> bool:
+            deadline = time.monotonic() + 10.0
+            while not condition() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.02)
+            return condition()
+
+        seen: list = []
+        observer = Observer(node)  # the console's: every sample
+        observer.samples(ROWS, TaskState, lambda _, sample: seen.append(sample), qos=WATCH_QOS)
+        latest = LatestSamples(node, {ROWS: TaskState}, observers=[observer])
+        assert spin_until(lambda: node.count_publishers(ROWS) > 0 and publisher.get_subscription_count() > 0)
+        assert latest.get(ROWS) is None  # nothing sent yet
+        readers = [info for info in node.get_subscriptions_info_by_topic(ROWS) if info.node_name == 'bootstrap']
+        assert len(readers) == 1, readers
+        publisher.publish(TaskState(task='T', error_norm=0.5))
+        assert spin_until(lambda: latest.get(ROWS) is not None)
+        assert latest.get(ROWS).error_norm == 0.5 and [s.error_norm for s in seen] == [0.5]
+    finally:
+        node.destroy_node()
+        task.destroy_node()
+        rclpy.try_shutdown(context=here)
+        rclpy.try_shutdown(context=there)

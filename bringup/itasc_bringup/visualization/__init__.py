@@ -80,10 +80,11 @@ def _is_application(path) -> bool:
     return isinstance(data, dict) and 'application' in data
 
 
-def start_visualization(app: str, *, model, node, composer, recorder=None) -> Visualization:
+def start_visualization(app: str, *, model, node, composer, recorder=None, observers=()) -> Visualization:
     """Diagnostics of every composite of ``model`` on ``node``; for an iTaSC application, the
-    visualization process; ``recorder`` records the global topics and the markers. Its ``end()`` is
-    also called when this process exits."""
+    visualization process; ``recorder`` records the global topics and the markers; what the
+    ``observers`` of the process already read over DDS is not read again (:class:`.feed.LatestSamples`).
+    Its ``end()`` is also called when this process exits."""
     from itasc_core.composition.model import walk
 
     from ..apps import resolve_app
@@ -99,8 +100,8 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Vi
             recorder.record(topic, type_name, qos=LATCHED_QOS if topic == '/tf_static' else TF_QOS)
     composites = {m.name: path for path, m in walk(model)}
     solvers = [f'{path}/Solver/status' for path, m in walk(model) if any(e.name == 'Solver' for e in m.entities)]
-    Diagnostics(node, app=model.name, composites=composites, timer=lambda: composer.timer,
-                solvers=LatestSamples(node, dict.fromkeys(solvers, SolverStatus)))  # lives as long as the node
+    Diagnostics(node, app=model.name, composites=composites, timer=lambda: composer.timer,  # lives as long as the node
+                solvers=LatestSamples(node, dict.fromkeys(solvers, SolverStatus), observers=observers))
     path = resolve_app(app)
     if not _is_application(path):
         return Visualization(end=lambda: None)  # a composition model of the pattern itself: no robots to show
@@ -112,7 +113,8 @@ def start_visualization(app: str, *, model, node, composer, recorder=None) -> Vi
     process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve()),
                                 '--feed'], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                preexec_fn=_as_display_process)
-    feed = FeedWriter(node, LatestSamples(node, topics), process.stdin.fileno(), rate=DISPLAY_RATE)
+    feed = FeedWriter(node, LatestSamples(node, topics, observers=observers), process.stdin.fileno(),
+                      rate=DISPLAY_RATE)
 
     def end() -> None:
         feed.close()
