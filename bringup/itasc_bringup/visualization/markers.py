@@ -14,6 +14,7 @@ in TF at its stamp.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,14 +85,25 @@ def _marker(ns: str, index: int, kind: int, frame: str, stamp: Time, **fields) -
     return marker
 
 
+@functools.lru_cache(maxsize=64)
+def _axes_lines(placement: tuple[float, ...], length: float) -> tuple[list[Point], list[ColorRGBA]]:
+    """The points and colours of axes at ``placement`` (a pose's 12 numbers): made once, since
+    most axes never move in their frame (building them was a quarter of a drawing's time); only
+    read afterwards."""
+    pose = pin.SE3(np.array(placement[3:]).reshape(3, 3), np.array(placement[:3]))
+    points, colours = [], []
+    for axis, rgb in enumerate(((1, 0, 0), (0, 1, 0), (0, 0, 1))):
+        points += [_point(pose.translation), _point(pose.act(length * np.eye(3)[axis]))]
+        colours += [_colour(rgb), _colour(rgb)]
+    return points, colours
+
+
 def _axes(ns: str, index: int, frame: str, stamp: Time, placement: pin.SE3 | None = None,
           length: float = AXIS_LENGTH) -> Marker:
     placement = pin.SE3.Identity() if placement is None else placement
-    marker = _marker(ns, index, Marker.LINE_LIST, frame, stamp)
+    points, colours = _axes_lines((*placement.translation, *placement.rotation.flatten()), length)
+    marker = _marker(ns, index, Marker.LINE_LIST, frame, stamp, points=points, colors=colours)
     marker.scale.x = length / 10
-    for axis, rgb in enumerate(((1, 0, 0), (0, 1, 0), (0, 0, 1))):
-        marker.points += [_point(placement.translation), _point(placement.act(length * np.eye(3)[axis]))]
-        marker.colors += [_colour(rgb), _colour(rgb)]
     return marker
 
 
