@@ -218,8 +218,8 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
             assert spin_until(root_running, 120), run.output()
             # the display yields the CPU to the control loop (DISPLAY_NICENESS): `ps -o ni` shows it
             displays, application = started_here(command='itasc_bringup.visualization.node'), run.process.pid
-            assert displays and all(os.getpriority(os.PRIO_PROCESS, pid) == os.getpriority(os.PRIO_PROCESS, application)
-                                    + 10 for pid in displays), displays
+            lower = min(19, os.getpriority(os.PRIO_PROCESS, application) + 10)  # 19: the lowest there is
+            assert displays and all(os.getpriority(os.PRIO_PROCESS, pid) == lower for pid in displays), displays
             # a driver killed before the application heard it would get the start-up grace (5 s), not
             # the silence timeout: the two processes find each other over DDS in seconds on a busy machine
             running_at = time.monotonic()
