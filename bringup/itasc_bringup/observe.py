@@ -70,8 +70,8 @@ class Observer:
         ``callback`` too, so that another tool of the process needs no reader of its own (each one
         takes and converts every sample of a remote topic, at the tick rate); False if there is no
         such reader."""
-        others = self._sharing.get(topic)
-        if others is None or topic not in self._readers:
+        others = self._sharing.get(topic)  # there while the reader is (see _tap and close)
+        if others is None:
             return False
         others.append(callback)
         return True
