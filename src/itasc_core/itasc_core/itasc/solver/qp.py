@@ -33,6 +33,7 @@ from time import perf_counter
 import numpy as np
 import qpsolvers
 from scipy.linalg.lapack import dgeqp3 as _geqp3
+from scipy.linalg.lapack import dgesvd as _gesvd
 from scipy.linalg.lapack import dorgqr as _orgqr
 
 from pydantic import Field, field_validator
@@ -181,51 +182,53 @@ class QpSolver(Solver):
                      locked: np.ndarray, previous: np.ndarray,
                      kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
                      lb: np.ndarray, ub: np.ndarray, reg: float | np.ndarray) -> np.ndarray | None:
-        ms = sum(r.J.shape[0] for r in ineq)
+        # H, f, C and the bounds are filled in place: at 1 kHz the numpy calls that stacked
+        # them block by block (hstack, eye, concatenate) cost more than the QP itself
+        ms = 0
+        for r in ineq:
+            ms += r.J.shape[0]
         m = n + ms
+        H = np.zeros((m, m))
+        f = np.zeros(m)
         if eq:
             J = np.concatenate([r.J for r in eq]) if len(eq) > 1 else eq[0].J
             w = np.concatenate([r.weights for r in eq]) if len(eq) > 1 else eq[0].weights
             d = np.concatenate([r.desired for r in eq]) if len(eq) > 1 else eq[0].desired
             WJ = w[:, None] * J
-            Hv, fv = J.T @ WJ, d @ WJ
-            fv *= -1.0
-        else:
-            Hv, fv = np.zeros((n, n)), np.zeros(n)
-        Hv.flat[::n + 1] += reg
-        if ms:
-            H = np.zeros((m, m))
-            H[:n, :n] = Hv
-            H.flat[n * m + n::m + 1] = np.concatenate([r.weights for r in ineq]) + np.mean(reg)
-            f = np.concatenate([fv, np.zeros(ms)])
-        else:
-            H, f = Hv, fv
+            np.matmul(J.T, WJ, out=H[:n, :n])
+            np.matmul(d, WJ, out=f[:n])
+            f[:n] *= -1.0
+        H.flat[:n * m:m + 1] += reg
+        mk = 0
+        for J, _, _ in kept:
+            mk += J.shape[0]
+        ml = locked.shape[0]
         # general constraints C x in [cl, cu]: level inequalities (with their slacks), kept
         # higher-level inequalities, then the locked equalities
-        blocks: list[np.ndarray] = []
-        cl: list[np.ndarray] = []
-        cu: list[np.ndarray] = []
+        C = np.zeros((ms + mk + ml, m))
+        lower = np.empty(m - ms + C.shape[0])
+        upper = np.empty_like(lower)
+        lower[:n], upper[:n] = lb, ub
+        row = 0
+        for r in ineq:
+            k = r.J.shape[0]
+            C[row:row + k, :n] = r.J
+            H.flat[(n + row) * (m + 1):(n + row + k) * (m + 1):m + 1] = r.weights
+            lower[n + row:n + row + k], upper[n + row:n + row + k] = r.lower, r.upper
+            row += k
         if ms:
-            blocks.append(np.hstack([np.concatenate([r.J for r in ineq]), np.eye(ms)]))
-            cl += [r.lower for r in ineq]
-            cu += [r.upper for r in ineq]
+            C.flat[n:ms * m:m + 1] = 1.0  # each row's slack
+            H.flat[n * (m + 1)::m + 1] += reg if reg.ndim == 0 else reg.sum() / n  # the mean
         for J, lo, up in kept:
-            blocks.append(np.hstack([J, np.zeros((J.shape[0], ms))]) if ms else J)
-            cl.append(lo)
-            cu.append(up)
-        n_ineq = sum(b.shape[0] for b in blocks)
-        if locked.shape[0]:
-            blocks.append(np.hstack([locked, np.zeros((locked.shape[0], ms))]) if ms else locked)
-            target = locked @ previous
-            cl.append(target)
-            cu.append(target)
-        if not blocks:
-            C, lower, upper = np.zeros((0, m)), lb, ub
-        else:
-            C = np.concatenate(blocks) if len(blocks) > 1 else blocks[0]
-            lower, upper = np.concatenate([lb, *cl]), np.concatenate([ub, *cu])
+            k = J.shape[0]
+            C[row:row + k, :n] = J
+            lower[n + row:n + row + k], upper[n + row:n + row + k] = lo, up
+            row += k
+        if ml:
+            C[row:, :n] = locked
+            lower[n + row:] = upper[n + row:] = locked @ previous
         solve = self._solve_daqp if self.direct else self._solve_qpsolvers
-        return solve(H, f, C, lower, upper, n_ineq, n)
+        return solve(H, f, C, lower, upper, ms + mk, n)
 
     def _solve_daqp(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, lower: np.ndarray,
                     upper: np.ndarray, n_ineq: int, n: int) -> np.ndarray | None:
@@ -270,18 +273,16 @@ def _free_part(task: ConstraintRows, locked: np.ndarray) -> np.ndarray:
 
 
 def _smallest_singular_value(parts: list[np.ndarray], *, truncation: float = 1e-9) -> float:
-    """The smallest non-zero singular value over ``parts`` (inf if none), in one batched SVD
-    (zero-padded to a common row count; padding adds only zero singular values). Values below
+    """The smallest non-zero singular value over ``parts`` (inf if none; LAPACK's own SVD of
+    each part, without the singular vectors: half of numpy's for these few-row parts). Values below
     ``truncation`` relative to a part's largest are directions higher levels fixed or no row
     reaches, not singularities (as in the WDLS Solver)."""
-    if not parts:
-        return np.inf
-    rows = max(p.shape[0] for p in parts)
-    stack = np.zeros((len(parts), rows, parts[0].shape[1]))
-    for i, part in enumerate(parts):
-        stack[i, :part.shape[0]] = part
-    if not np.isfinite(stack).all():
-        return np.inf  # non-finite rows: the level reports infeasible
-    s = np.linalg.svd(stack, compute_uv=False)
-    s[s <= truncation * np.maximum(1.0, s[:, :1])] = np.inf
-    return float(s.min(initial=np.inf))
+    smallest = np.inf
+    for part in parts:
+        if not np.isfinite(part).all():
+            return np.inf  # non-finite rows: the level reports infeasible
+        s = _gesvd(part, compute_uv=0, full_matrices=0)[1]
+        if s.size:
+            s = s[s > truncation * max(1.0, s[0])]
+            smallest = min(smallest, s.min(initial=np.inf))
+    return float(smallest)
