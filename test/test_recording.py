@@ -405,3 +405,46 @@ def test_a_local_output_is_recorded_every_sample_without_a_dds_reader(context, t
     assert [m.value.tolist() for m in recorded] == [[0.1 * k] for k in range(50)]
     assert recorded[7].jacobian.tolist() == [1.0, 7.0] and list(recorded[7].joint_names) == list(joints)
     assert (recorded[7].stamp.sec, recorded[7].stamp.nanosec, recorded[7].rotation) == (0, 7_000_000, -1)
+
+
+def test_a_recording_without_the_robots_transforms_is_named_at_the_end(context, tmp_path):
+    """Before closing a recording the bootstrap waits for the 3-D scene (markers, ``/tf_static``,
+    ``/tf``: ``itasc-plot`` draws it from all three) and warns about what is missing. A recording
+    with the markers and the fixed frames but not one ``/tf`` (the robots' moving links: the
+    visualization process died before sending any) names ``/tf``; it used to pass unnoticed, only
+    missing markers were told."""
+    import subprocess
+
+    from tf2_msgs.msg import TFMessage
+    from visualization_msgs.msg import MarkerArray
+
+    from itasc_bringup.bootstrap import _await_first_drawing
+    from itasc_bringup.recording import Recorder
+    from itasc_bringup.visualization import Visualization
+
+    markers = '/app/visualization/markers'
+    node = rclpy.create_node('display', context=context)
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    publishers = {topic: node.create_publisher(msg_type, topic, latched)
+                  for topic, msg_type in ((markers, MarkerArray), ('/tf_static', TFMessage))}
+    recorder = Recorder(tmp_path / 'run.mcap', prefix='/app', context=context)
+    for topic, type_name in ((markers, 'visualization_msgs/msg/MarkerArray'), ('/tf', 'tf2_msgs/msg/TFMessage'),
+                             ('/tf_static', 'tf2_msgs/msg/TFMessage')):
+        recorder.record(topic, type_name, qos=latched)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(recorder)
+    dead = subprocess.Popen([sys.executable, '-c', 'pass'])  # the visualization process, ended
+    dead.wait()
+    try:
+        for publisher in publishers.values():
+            publisher.publish(publisher.msg_type())
+        assert spin_until(executor, lambda: recorder.last(markers) is not None
+                          and recorder.last('/tf_static') is not None, 5.0)
+        visualization = Visualization(end=lambda: None, process=dead, markers=markers, started_at=time.monotonic())
+        assert _await_first_drawing(executor, visualization, recorder) == ['/tf']
+        # no visualization (a composition model of the pattern itself): nothing is missing
+        assert _await_first_drawing(executor, Visualization(end=lambda: None), recorder) == []
+    finally:
+        executor.shutdown()
+        recorder.destroy_node()
+        node.destroy_node()

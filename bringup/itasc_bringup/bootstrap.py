@@ -272,9 +272,9 @@ def main(argv: list[str] | None = None) -> int:
             if state.endswith('NotifyStopped'):
                 _await_final_states(executor, facts=facts, outcome=outcome, recorder=recorder,
                                     composites=composites)
-                if recorder is not None and not _await_first_drawing(executor, visualization, recorder):
-                    undrawn.append('the recording holds no 3-D scene: the visualization process drew nothing '
-                                   f'within {FIRST_DRAWING_TIMEOUT:g} s of its start')
+                if recorder is not None and (missing := _await_first_drawing(executor, visualization, recorder)):
+                    undrawn.append(f'the recording holds no {", ".join(missing)}: the visualization process did not '
+                                   f'draw the 3-D scene within {FIRST_DRAWING_TIMEOUT:g} s of its start')
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
@@ -337,16 +337,16 @@ def _await_final_states(executor, *, facts, outcome, recorder, composites: dict[
         executor.spin_once(timeout_sec=0.01)
 
 
-def _await_first_drawing(executor, visualization, recorder) -> bool:
+def _await_first_drawing(executor, visualization, recorder) -> list[str]:
     """A short run may end before the visualization process drew the scene once (its imports take
     seconds on a loaded machine): spin until the recording holds it, at most until
     :data:`~.visualization.FIRST_DRAWING_TIMEOUT` after the process started (the feed keeps the
-    last samples, so it draws the final state). False if the recording holds no scene although a
-    visualization process was started."""
+    last samples, so it draws the final state). The scene's topics the recording still holds
+    nothing of (any of them missing leaves ``itasc-plot`` without a 3-D scene)."""
     while not visualization.drawn(recorder):
         executor.spin_once(timeout_sec=0.01)
         recorder.drain()
-    return visualization.markers is None or recorder.last(visualization.markers) is not None
+    return visualization.missing(recorder)
 
 
 def _make_console(args: argparse.Namespace, **kwargs):

@@ -59,12 +59,19 @@ class Visualization:
     markers: str | None = None
     started_at: float = 0.0
 
+    def missing(self, recorder) -> list[str]:
+        """The topics of the scene (the markers, ``/tf``, ``/tf_static``) that ``recorder`` holds
+        no message of; none without a visualization (a composition model of the pattern itself)."""
+        if self.markers is None:
+            return []
+        return [topic for topic in (self.markers, '/tf', '/tf_static') if recorder.last(topic) is None]
+
     def drawn(self, recorder) -> bool:
         if self.process is None or self.markers is None or self.process.poll() is not None:
             return True
         if time.monotonic() - self.started_at > FIRST_DRAWING_TIMEOUT:
             return True
-        return all(recorder.last(topic) is not None for topic in (self.markers, '/tf', '/tf_static'))
+        return not self.missing(recorder)
 
 
 def _as_display_process() -> None:
