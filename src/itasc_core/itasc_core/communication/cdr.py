@@ -14,7 +14,9 @@ sequences before it; in a data flow these stay the same tick after tick (the nam
 change, nor the sizes of its arrays). So an encoder keeps, per *shape* (the values of its strings and
 name lists, the sizes of its number sequences), a template: one ``struct`` format
 holding the padding and the encoded strings and counts, which the numbers of each message fill in a
-single ``pack`` (1-3 us a message, against 4-12 us written field by field). Padding bytes are
+single ``pack`` (1-3 us a message, against 4-12 us written field by field). A number sequence
+that is already a numpy array of its type is packed as it is: ``numpy.asarray(x, 'd')`` alone cost
+a third of a message's encoding. Padding bytes are
 zeros (Fast CDR leaves them undefined): the bytes decode to the same message, they need not be
 the same bytes.
 """
@@ -38,6 +40,8 @@ _SCALARS = {'double': ('d', 8), 'float': ('f', 4), 'int32': ('i', 4), 'uint32': 
             'uint64': ('Q', 8), 'int16': ('h', 2), 'uint16': ('H', 2), 'int8': ('b', 1), 'uint8': ('B', 1),
             'octet': ('B', 1), 'boolean': ('?', 1)}
 _U32 = struct.Struct('<I')
+#: struct code -> numpy dtype (the singletons numpy's arrays of these types carry)
+_DTYPES = {code: np.dtype(code) for code, _ in _SCALARS.values()}
 #: The most templates an encoder keeps (a topic whose strings or sizes change every message would
 #: otherwise grow them without end).
 _TEMPLATES = 64
@@ -84,12 +88,6 @@ def _fields(cls: type) -> list[_Field]:
 def _string(value: str) -> bytes:
     data = value.encode()
     return _U32.pack(len(data) + 1) + data + b'\0'
-
-
-def _seconds(t: float) -> tuple[int, int]:
-    sec = math.floor(t)
-    nanosec = round((t - sec) * 1e9)
-    return sec, nanosec if nanosec < 1_000_000_000 else 999_999_999
 
 
 def _strings(values) -> bytes:
@@ -173,21 +171,26 @@ def _compile(cls: type) -> Encode | None:
     constants = 1
     for i, field in enumerate(fields):
         v = f'v{i}'
-        read = f'asarray({field.read}, {field.code!r})' if field.kind == 'numbers' else field.read
-        lines.append(f'    {v} = {read}')
+        lines.append(f'    {v} = {field.read}')
+        if field.kind == 'numbers':  # a sample's arrays are already numpy arrays of the type, mostly
+            lines.append(f'    if {v}.__class__ is not ndarray or {v}.dtype is not DTYPES[{field.code!r}]:')
+            lines.append(f'        {v} = asarray({v}, {field.code!r})')
         if field.kind == 'scalar':
             args.append(v)
             continue
         if field.kind in ('time', 'header'):
             stamp = v if field.kind == 'time' else f'{v}.stamp'
-            args.append(f'*seconds({v})' if sample else f'{stamp}.sec, {stamp}.nanosec')
+            if sample:  # seconds -> (sec, nanosec), written out: a call per message costs more
+                lines += [f'    sec{i} = floor({v})', f'    nsec{i} = round(({v} - sec{i}) * 1e9)',
+                          f'    if nsec{i} > 999999999:', f'        nsec{i} = 999999999']
+            args.append(f'sec{i}, nsec{i}' if sample else f'{stamp}.sec, {stamp}.nanosec')
             if field.kind == 'time':
                 continue
             key.append("''" if sample else f'{v}.frame_id')
         elif field.kind == 'strings':
             # by value: a sample's names are often a new tuple each tick (a Solver's active tasks), and a
             # tuple of the same strings hashes in ~0.1 us (a string keeps its hash), a template takes ~30 us
-            key.append(f'tuple({v})')
+            key.append(f'{v} if {v}.__class__ is tuple else tuple({v})')
         else:
             key.append(f'{v}.size' if field.kind == 'numbers' else v)
         args.append(f'c[{constants}]')  # the string, the name list, or the count of the numbers
@@ -207,7 +210,8 @@ def _compile(cls: type) -> Encode | None:
         '    c = t[1]',
         f'    return t[0]({", ".join(args)})',
     ])
-    scope: dict[str, Any] = {'asarray': np.asarray, 'seconds': _seconds, 'template': _template, 'fields': fields,
+    scope: dict[str, Any] = {'asarray': np.asarray, 'ndarray': np.ndarray, 'DTYPES': _DTYPES, 'floor': math.floor,
+                             'template': _template, 'fields': fields,
                              'special': getattr(cls, 'MESSAGE_FIELDS', {}), 'templates': {}, 'LIMIT': _TEMPLATES}
     exec(compile(source, f'<CDR encoder of {cls.__qualname__}>', 'exec'), scope)
     return scope['encode']
