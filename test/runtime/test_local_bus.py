@@ -108,3 +108,49 @@ def test_a_switched_off_composite_is_sent_nothing_and_gets_the_first_sample_afte
     finally:
         destroy_all(theirs, context=other)
         destroy_all(executor)
+
+
+def test_a_reader_in_another_process_gets_the_message_of_each_sample_written():
+    """An output sends a DDS reader its sample's CDR bytes (no ROS message built in the tick): a
+    reader of another context decodes exactly the message the sample stands for, names, stamp,
+    numbers and a field a sample holds its own way (``rotation``: None is -1) alike."""
+    import numpy as np
+
+    from itasc_core.itasc.entities.messages import FeaturesSample
+    from itasc_msgs.msg import Features
+
+    topic = '/bus/itasc/Scene/relation_T'
+    spec = PortSpec(name='relation', direction='output', msg_type=Features, type='features', id=topic)
+    rclpy.init()
+    other = Context()
+    rclpy.init(context=other)
+    executor, theirs = make_executor(), make_executor(context=other)
+    node = rclpy.create_node('Scene', namespace='/bus/itasc')
+    try:
+        output = OutputPort(node, spec)
+        reader_node = rclpy.create_node('echo', namespace='/', context=other)
+        theirs.add_node(reader_node)
+        received: list[Features] = []
+        reader_node.create_subscription(Features, topic, received.append, 10)
+        samples = [FeaturesSample(12.000000000499, ('x', 'y', 'z', 'rx', 'ry', 'rz'), ('j1', 'j2', 'j3'),
+                                  np.arange(6.0), np.arange(18.0).reshape(6, 3), rotation=3),
+                   FeaturesSample(1.25, ('distance',), ('j1', 'j2', 'j3'), np.array([0.5]),
+                                  np.array([[1.0, -2.0, 0.25]]))]
+        deadline = time.monotonic() + 10
+        while not received and time.monotonic() < deadline:  # discovery
+            output.write(samples[0])
+            theirs.spin_once(timeout_sec=0.05)
+        assert received, 'the reader of another context heard nothing'
+        for sample in samples:
+            output.write(sample)
+        expected = [sample.to_message() for sample in samples]
+        end = time.monotonic() + 5
+        while received[-1] != expected[-1] and time.monotonic() < end:
+            theirs.spin_once(timeout_sec=0.05)
+        received = received[-2:]  # before them: the writes of the discovery
+        assert received == expected
+        assert received[1].rotation == -1 and list(received[0].names) == ['x', 'y', 'z', 'rx', 'ry', 'rz']
+        output.destroy()
+    finally:
+        destroy_all(theirs, context=other)
+        destroy_all(executor, node)

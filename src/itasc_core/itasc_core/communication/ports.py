@@ -8,10 +8,12 @@ that connected ports agree on all of it before connecting them.
 Locality is a deployment choice: an input whose output lives in the same process is linked to it
 directly (the sample object is handed over, :mod:`.samples`: no message built, no serialisation,
 no executor hop); otherwise it subscribes to the output's topic over DDS and turns each message
-into its sample. An output builds and publishes the ROS message only while a DDS reader listens
-(another process, ``ros2 topic echo``), so co-located connections pay for nothing they do not
-need. Observers in the process (the recorder, the console) *tap* an output instead of reading it
-over DDS (:meth:`OutputPort.tap`): they get every sample, and the tick pays no DDS send for them.
+into its sample. An output publishes only while a DDS reader listens (another process, ``ros2
+topic echo``), so co-located connections pay for nothing they do not need; it then sends the
+sample's CDR bytes (:mod:`.cdr`), not a ROS message built from the sample and converted by rclpy
+(a ``Features`` sample 145 -> 88 us a publish on a 2-core VM). Observers in the process (the
+recorder, the console) *tap* an output instead of reading it over DDS (:meth:`OutputPort.tap`):
+they get every sample, and the tick pays no DDS send for them.
 
 A child composite in another process that its parent's Scheduler has switched off (a Task not
 active in the current state of the Running sub-FSM) computes nothing, so its readers do not count
@@ -34,6 +36,7 @@ from typing import Any, Callable, Iterator
 from rclpy.context import Context
 from rclpy.node import Node
 
+from .cdr import serialize
 from .qos import DATA_QOS
 from .samples import as_message, as_sample
 
@@ -173,10 +176,10 @@ class LocalBus:
 
 
 class ListenedPublisher:
-    """A publisher that builds and sends a sample's message only while a DDS reader listens (a
-    publish with a reader costs a Fast DDS send in the publishing thread, a sample's message
-    its conversion); who listens is looked up every :attr:`RECHECK_PERIOD` seconds. A reader of a
-    composite switched off (``idle``, namespaces) does not listen."""
+    """A publisher that sends a sample, as its CDR bytes, only while a DDS reader listens (a
+    publish with a reader costs a Fast DDS send in the publishing thread); who listens is looked
+    up every :attr:`RECHECK_PERIOD` seconds. A reader of a composite switched off (``idle``,
+    namespaces) does not listen."""
 
     #: How often the number of DDS subscribers is looked up again (seconds).
     RECHECK_PERIOD = 0.2
@@ -211,7 +214,7 @@ class ListenedPublisher:
             self._checked_at = now
             self._listened = self._listening()
         if self._listened:
-            self.publisher.publish(as_message(sample))
+            self.publisher.publish(serialize(sample))
 
 
 class OutputPort:

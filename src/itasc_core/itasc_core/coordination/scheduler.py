@@ -25,8 +25,10 @@ from std_msgs.msg import Float64
 from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENGAGED, SAFETY, SAFETY_EVENT,
                                           SCHEDULER_ACTIVATE, SCHEDULER_ACTIVATED, SCHEDULER_INITIALIZE,
                                           SCHEDULER_INITIALIZED, event, named)
+from ..communication.cdr import serialize
 from ..communication.ports import LocalBus
 from ..communication.qos import DATA_QOS
+from ..communication.samples import Float64Sample
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
 from ..entity import CompositeContext, Entity
@@ -97,7 +99,7 @@ class Scheduler(Entity):
         publisher = self.create_publisher(Float64, f'{namespace}/trigger', DATA_QOS)
 
         def trigger(t: float) -> None:
-            publisher.publish(Float64(data=t))
+            publisher.publish(serialize(Float64Sample(t)))  # CDR bytes: no message built and converted
         self._insert(_Item(name, trigger, enabled=enabled, trigger=publisher, namespace=namespace), None)
 
     def add_monitor(self, monitor: Monitor) -> None:
