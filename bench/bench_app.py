@@ -80,7 +80,7 @@ def application(app: str):
 
 
 def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', record: bool = False,
-            stand_ins_of=None) -> dict:
+            between_ticks: str = 'auto', stand_ins_of=None) -> dict:
     """The application through the bootstrap (against the stand-ins of the outside drivers of
     ``stand_ins_of``, its checked model): its summary's figures, and when the console said that
     the root is Running (seconds after the process started)."""
@@ -90,7 +90,8 @@ def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', re
     with tempfile.TemporaryDirectory(prefix='bench_app_') as tmp, drivers:
         summary_path = pathlib.Path(tmp) / 'summary.json'
         command = [sys.executable, '-m', 'itasc_bringup.bootstrap', app, '--rate', str(rate),
-                   '--duration', str(seconds), '--deploy', deploy, '--summary-json', str(summary_path)]
+                   '--duration', str(seconds), '--deploy', deploy, '--between-ticks', between_ticks,
+                   '--summary-json', str(summary_path)]
         if record:
             command += ['--record', str(pathlib.Path(tmp) / 'run')]
         load = _load()
@@ -180,17 +181,18 @@ BASELINE_KEYS = ('solver_p50_us', 'qp_alone_p50_us', 'solver_paced_p50_us', 'han
 
 
 def measure(app: str, *, rate: float, seconds: float, deploy: str = 'single', record: bool = False,
-            baseline: bool = True, stand_ins: bool = True) -> dict:
+            between_ticks: str = 'auto', baseline: bool = True, stand_ins: bool = True) -> dict:
     """One application run and, in the same run, its solver step alone and the hand-written node
     (none for a composition model: ``baseline`` says so)."""
-    result = {'app': app, 'rate_hz': rate, 'deploy': deploy, 'record': record, 'seconds': seconds}
+    result = {'app': app, 'rate_hz': rate, 'deploy': deploy, 'record': record, 'between_ticks': between_ticks,
+              'seconds': seconds}
     model = application(app)
     if baseline and model is None:
         baseline = False
         result |= dict.fromkeys(BASELINE_KEYS) | {
             'baseline': f'none: {app} is a composition model (composite:), it has no constraint-based program'}
     before = run_fused(app, rate=rate) if baseline else None
-    result |= run_app(app, rate=rate, seconds=seconds, deploy=deploy, record=record,
+    result |= run_app(app, rate=rate, seconds=seconds, deploy=deploy, record=record, between_ticks=between_ticks,
                       stand_ins_of=model if stand_ins else None)
     if model is not None and not result['solver_hz']:  # tick times of a program that never computed
         raise RuntimeError(f'{app}: the Solver never solved in {seconds:g} s (no joint states from a driver?)')
@@ -315,6 +317,8 @@ def main() -> None:
     parser.add_argument('--scaling-seconds', type=float, default=5.0, help='run time of the 1..50 Tasks runs')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--record', action='store_true')
+    parser.add_argument('--between-ticks', choices=('auto', 'spin', 'wait'), default='auto',
+                        help="the bootstrap's --between-ticks (auto: spin while the ticks fill half the period)")
     parser.add_argument('--drivers', choices=('stand-in', 'external'), default='stand-in',
                         help="an outside driver (ros2_control): run the stand-in its kind names, or "
                              "'external': the real one runs already")
@@ -325,7 +329,7 @@ def main() -> None:
         report(args)
         return
     result = measure(args.app, rate=args.rate, seconds=args.seconds, deploy=args.deploy, record=args.record,
-                     stand_ins=args.drivers == 'stand-in')
+                     between_ticks=args.between_ticks, stand_ins=args.drivers == 'stand-in')
     print(json.dumps(result))
 
 

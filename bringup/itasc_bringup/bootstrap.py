@@ -33,6 +33,8 @@ import signal
 import sys
 import time
 
+from .between_ticks import MODES, SPIN_FROM, BetweenTicks
+
 __all__ = ['main', 'parse_args']
 
 #: How long an orderly Stop may take before the bootstrap gives up waiting.
@@ -78,6 +80,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help='record the run: a rosbag2 bag folder DIR (metadata.yaml + MCAP), or one FILE.mcap')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--rate', type=float, default=None, help='override the Timer rate (Hz)')
+    parser.add_argument('--between-ticks', choices=MODES, default='auto',
+                        help='between two ticks, wait for the next one or spin (a core busy; on a virtual machine '
+                             'the ticks are up to a third faster); auto: spin while the ticks take at least '
+                             f'{SPIN_FROM * 100:.0f}%% of the period (default)')
     parser.add_argument('-v', '--verbose', action='store_true',
                         help='print every transition of every composite ([state] lines) and [status] lines')
     parser.add_argument('--summary-json', metavar='FILE', type=pathlib.Path, default=None,
@@ -231,8 +237,14 @@ def main(argv: list[str] | None = None) -> int:
         code = None
         failed_start = False
         housekeeping_at = 0.0
+
+        def between_changed(spinning: bool, share: float) -> None:
+            if share:  # not when the hierarchy stopped computing
+                console.show(f'{"spinning" if spinning else "waiting"} between ticks: they take {share:.0%} of '
+                             'the period (--between-ticks)')
+        between = BetweenTicks(args.between_ticks, timer=lambda: composer.timer, on_change=between_changed)
         while True:
-            executor.spin_once(timeout_sec=0.02)
+            between.step(executor)
             if recorder is not None:
                 recorder.drain()  # the samples of the tick that just ran: CDR bytes, to the writer
             if time.monotonic() < housekeeping_at:

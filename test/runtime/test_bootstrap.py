@@ -82,6 +82,31 @@ def test_ctrl_c_leads_to_an_orderly_stop_and_exit_0(deploy):
         assert sequences.get(composite, [''])[-1] == 'Active.Stop.Stopped.NotifyStopped', app.output()
 
 
+def _cpu_of_main_thread(pid: int) -> float:
+    """The CPU time process ``pid``'s main thread has used so far [s] (user + system)."""
+    with open(f'/proc/{pid}/task/{pid}/stat') as stat:
+        fields = stat.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')  # utime, stime
+
+
+def test_between_ticks_the_thread_that_ticks_waits_or_spins_as_told():
+    """``--between-ticks wait``: the bootstrap's thread waits for each tick, using the CPU for the
+    ticks only; ``spin``: it polls between ticks and keeps its core busy (a wait there makes the
+    next tick up to a third slower on a virtual machine)."""
+    busy = {}
+    for mode in ('wait', 'spin'):
+        with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--rate', '200', '--between-ticks', mode,
+                      '--duration', '4']) as app:
+            app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+            time.sleep(0.5)
+            cpu, since = _cpu_of_main_thread(app.process.pid), time.monotonic()
+            time.sleep(2.0)
+            busy[mode] = (_cpu_of_main_thread(app.process.pid) - cpu) / (time.monotonic() - since)
+            assert app.finish(timeout=60) == 0, app.output()
+    assert busy['spin'] > 0.7, busy  # a core, less what the other processes of a 2-core machine take
+    assert busy['wait'] < busy['spin'] / 2, busy
+
+
 #: The bootstrap, with a Ctrl-C arriving while it validates the model (the first second of a start:
 #: imports and validation), at a point the test controls.
 CTRL_C_WHILE_LOADING = ('import os, signal, sys\n'

@@ -125,7 +125,7 @@ def _run_on_clock(monkeypatch, cost: Callable[[int], float], *, rate: float, sec
         due = clock.now + period
         while due < end:
             clock.now = max(clock.now, due + callback_delay)
-            timer._on_timer()
+            timer.run_due()
             while due <= clock.now:
                 due += period
         return timer, hierarchy

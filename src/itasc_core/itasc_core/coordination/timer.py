@@ -81,14 +81,21 @@ class Timer(Entity):
         self.dropped = 0
         self._t0 = time.monotonic()
         # The steady clock, the one time.monotonic reads: the schedule is counted on it.
-        self._timer = self.create_timer(1.0 / rate, self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._timer = self.create_timer(1.0 / rate, self.run_due, clock=Clock(clock_type=ClockType.STEADY_TIME))
         _ask_switch_interval(id(self), max(MIN_SWITCH_INTERVAL, SWITCH_SHARE / rate))
 
     def _due(self) -> int:
         """How many ticks were due by now."""
         return int((time.monotonic() - self._t0) * self.rate)
 
-    def _on_timer(self) -> None:
+    @property
+    def next_due(self) -> float:
+        """When the next tick is due (``time.monotonic()``)."""
+        return self._t0 + (self.ticked + 1) / self.rate
+
+    def run_due(self) -> None:
+        """Run the ticks due by now (the ROS timer's callback; a thread that spins between ticks
+        calls it itself, see ``itasc_bringup.between_ticks``)."""
         before = None
         # Catching up while it gains on the schedule: a hierarchy whose ticks outlast the period
         # would never catch up, and must not keep the executor from its services and events.
@@ -100,7 +107,7 @@ class Timer(Entity):
                 behind = 1
             self._tick()
             before = behind
-        PACE.ticked(id(self), next_due=self._t0 + (self.ticked + 1) / self.rate, period=1.0 / self.rate)
+        PACE.ticked(id(self), next_due=self.next_due, period=1.0 / self.rate)
 
     def _tick(self) -> None:
         self.ticked += 1

@@ -1,0 +1,101 @@
+"""What the bootstrap's thread does between two ticks of the root Timer (issue #9): wait in the
+executor until its next event (the Timer's ROS timer), or spin: run the Timer's due ticks itself
+as soon as they are due, never sleeping shortly before one.
+
+On a virtual machine a thread that sleeps between ticks finds the next tick much slower: the same
+ticks of ``approach_object``, called in a loop in one process on the 2-core KVM guest, took a median
+435 us back to back, 470 us with a busy wait of 0.4 ms between them and 591-633 us with a sleep or
+an executor wait there (ten alternating rounds of 800 ticks). A sleep halts the vCPU, and the tick
+after it runs on cold caches and branch predictors. rclpy's ``spin_once(timeout_sec=0)`` sleeps
+too (~60 us a call, the kernel's timer slack), so a spinning thread serves the executor only while
+the next tick is more than :data:`SERVE_BEFORE` away, at least every :data:`SERVE_AT_LEAST`
+(its services and the other processes' events must not wait for long). The whole application at
+1 kHz, ``--deploy single``, two alternating pairs of 20 s runs (``bench/bench_app.py --json
+--between-ticks wait|auto``): tick p50 758/811 -> 531/648 us, p99 1141/1198 -> 1026/1053 us,
+991/981 -> 998/998 Hz, 187/379 -> 46/39 ticks dropped.
+
+Spinning keeps a core busy. So ``auto`` (the default) spins only while the ticks take at least
+:data:`SPIN_FROM` of the period (the median of the recent ones), when that third of a tick decides
+whether the rate holds, and waits again below :data:`WAIT_BELOW` (the ticks are shorter while it
+spins); ``spin`` and ``wait`` choose for good.
+"""
+
+from __future__ import annotations
+
+import itertools
+import statistics
+import time
+from typing import Any, Callable
+
+__all__ = ['BetweenTicks', 'MODES', 'SPIN_FROM', 'WAIT_BELOW']
+
+MODES = ('auto', 'spin', 'wait')
+#: ``auto`` spins once the ticks take this share of the period ...
+SPIN_FROM = 0.5
+#: ... and waits again once they take less than this.
+WAIT_BELOW = 0.3
+#: How long the executor waits for an event while the thread does not spin [s].
+WAIT = 0.02
+#: Spinning, the executor is served only while the next tick is further away than this [s] ...
+SERVE_BEFORE = 0.0003
+#: ... and then at most this often [s], but at least this often in any case [s].
+SERVE_PERIOD = 0.0002
+SERVE_AT_LEAST = 0.002
+#: The share is the median of the newest ``RECENT // 2`` ticks, once ``RECENT`` ran (the first
+#: ticks of a run are slow); ``auto`` looks at it every ``DECIDE_PERIOD`` seconds.
+RECENT = 200
+DECIDE_PERIOD = 0.25
+#: Ticks older than this [s] do not count: a Timer whose hierarchy stopped computing is idle.
+STALE = 0.5
+
+
+class BetweenTicks:
+    """Between the ticks of the root Timer ``timer()`` (None before there is one)."""
+
+    def __init__(self, mode: str = 'auto', *, timer: Callable[[], Any],
+                 on_change: Callable[[bool, float], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        """``on_change(spinning, share)``: told when ``auto`` starts or stops spinning."""
+        if mode not in MODES:
+            raise ValueError(f'between ticks: {mode!r} is not one of {MODES}')
+        self.mode = mode
+        self._timer = timer
+        self._on_change = on_change
+        self._clock = clock
+        self.spinning = mode == 'spin'
+        self._decided_at = -float('inf')
+        self._served_at = -float('inf')
+
+    def step(self, executor) -> None:
+        """One turn of the thread: the executor's next event (waiting for it at most
+        :data:`WAIT`), or, spinning, the due ticks, the executor served, or nothing."""
+        timer = self._timer()
+        if timer is None or not self._spin():
+            executor.spin_once(timeout_sec=WAIT)
+            return
+        now = self._clock()
+        left = timer.next_due - now
+        if left <= 0.0:
+            timer.run_due()
+        elif (left > SERVE_BEFORE and now - self._served_at >= SERVE_PERIOD) \
+                or now - self._served_at >= SERVE_AT_LEAST:
+            self._served_at = now
+            executor.spin_once(timeout_sec=0.0)
+
+    def _spin(self) -> bool:
+        if self.mode == 'auto' and self._clock() - self._decided_at >= DECIDE_PERIOD:
+            self._decided_at = self._clock()
+            share = self.share()
+            spinning = share >= SPIN_FROM or (self.spinning and share >= WAIT_BELOW)
+            if spinning != self.spinning:
+                self.spinning = spinning
+                if self._on_change is not None:
+                    self._on_change(spinning, share)
+        return self.spinning
+
+    def share(self) -> float:
+        """The median share of the period the newest computing ticks took (0 before there are enough)."""
+        timer = self._timer()
+        if timer is None or len(timer.stamps) < RECENT or self._clock() - timer.stamps[-1] > STALE:
+            return 0.0
+        return statistics.median(itertools.islice(reversed(timer.durations), RECENT // 2)) * timer.rate

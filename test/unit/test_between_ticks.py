@@ -1,0 +1,136 @@
+"""What the bootstrap's thread does between ticks (itasc_bringup.between_ticks): ``auto`` spins
+while the ticks take at least half the period and waits again once they take less than 30 %;
+spinning, it runs the Timer's due ticks itself and serves the executor only while the next tick
+is far, yet every 2 ms at least."""
+
+from collections import deque
+
+import pytest
+
+from itasc_bringup.between_ticks import RECENT, SERVE_AT_LEAST, SERVE_BEFORE, STALE, WAIT, BetweenTicks
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class _Timer:
+    """What the policy uses of the root Timer: its rate, newest ticks, next due tick, run_due()."""
+
+    def __init__(self, clock: _Clock, rate: float = 1000.0) -> None:
+        self.rate, self._clock = rate, clock
+        self.stamps: deque[float] = deque(maxlen=5000)
+        self.durations: deque[float] = deque(maxlen=5000)
+        self.next_due = clock.now + 1.0 / rate
+        self.ran = 0
+
+    def ran_for(self, count: int, *, share: float) -> None:
+        """``count`` ticks, each ``share`` of the period, the last one just now."""
+        self._clock.now += 1.0
+        for k in range(count):
+            self.stamps.append(self._clock.now - (count - k) / self.rate)
+            self.durations.append(share / self.rate)
+        self.next_due = self._clock.now + 1.0 / self.rate
+
+    def run_due(self) -> None:
+        self.ran += 1
+        self.next_due += 1.0 / self.rate
+
+
+class _Executor:
+    """What the policy uses of the executor: how long each ``spin_once`` could wait."""
+
+    def __init__(self) -> None:
+        self.waits: list[float] = []
+
+    def spin_once(self, *, timeout_sec: float) -> None:
+        self.waits.append(timeout_sec)
+
+
+@pytest.fixture
+def auto():
+    clock = _Clock()
+    timer, executor, changes = _Timer(clock), _Executor(), []
+    between = BetweenTicks('auto', timer=lambda: timer, clock=clock,
+                           on_change=lambda spinning, share: changes.append((spinning, round(share, 2))))
+    return between, timer, executor, clock, changes
+
+
+def test_auto_spins_while_the_ticks_fill_half_the_period_and_waits_again_below_30_percent(auto):
+    between, timer, executor, clock, changes = auto
+    between.step(executor)
+    assert executor.waits == [WAIT] and not between.spinning  # no tick yet
+    timer.ran_for(RECENT // 2, share=0.9)
+    between.step(executor)
+    assert not between.spinning  # too few ticks to tell: the first ones are slow
+    timer.ran_for(RECENT, share=0.6)
+    between.step(executor)
+    assert between.spinning and changes == [(True, 0.6)]
+    timer.ran_for(RECENT, share=0.4)  # shorter while it spins: it keeps spinning
+    between.step(executor)
+    assert between.spinning
+    timer.ran_for(RECENT, share=0.2)
+    between.step(executor)
+    assert not between.spinning and changes == [(True, 0.6), (False, 0.2)]
+    timer.ran_for(RECENT, share=0.45)  # not enough to start again
+    between.step(executor)
+    assert not between.spinning and executor.waits[-1] == WAIT
+
+
+def test_auto_waits_once_the_timer_stopped_computing(auto):
+    between, timer, executor, clock, changes = auto
+    timer.ran_for(RECENT, share=0.8)
+    between.step(executor)
+    assert between.spinning
+    clock.now += STALE + 0.5  # Safety, or stopped: no computing tick since
+    between.step(executor)
+    assert not between.spinning and changes[-1] == (False, 0.0) and executor.waits[-1] == WAIT
+
+
+def test_spinning_runs_due_ticks_at_once_and_serves_the_executor_only_far_from_the_next_tick():
+    clock = _Clock()
+    timer, executor = _Timer(clock), _Executor()
+    between = BetweenTicks('spin', timer=lambda: timer, clock=clock)
+    timer.next_due = clock.now + 0.0008  # far: the executor is served, without waiting
+    between.step(executor)
+    assert executor.waits == [0.0] and timer.ran == 0
+    clock.now = timer.next_due - SERVE_BEFORE / 2  # close: nothing but the clock
+    for _ in range(100):
+        between.step(executor)
+    assert executor.waits == [0.0] and timer.ran == 0
+    clock.now = timer.next_due  # due: run by the spinning thread itself
+    between.step(executor)
+    assert timer.ran == 1 and executor.waits == [0.0]
+
+
+def test_spinning_serves_the_executor_at_least_every_2_ms_even_when_ticks_fill_the_period():
+    clock = _Clock()
+    timer, executor = _Timer(clock), _Executor()
+    between = BetweenTicks('spin', timer=lambda: timer, clock=clock)
+    served = 0
+    for _ in range(1000):  # 10 ms of ticks that leave less than SERVE_BEFORE before the next one
+        clock.now += 0.00001
+        timer.next_due = clock.now + SERVE_BEFORE / 2
+        between.step(executor)
+        served = len(executor.waits)
+    assert served >= int(0.01 / SERVE_AT_LEAST) and all(wait == 0.0 for wait in executor.waits)
+
+
+@pytest.mark.parametrize('mode, spinning', [('spin', True), ('wait', False)])
+def test_spin_and_wait_hold_whatever_the_ticks_take(mode, spinning):
+    clock = _Clock()
+    timer, executor = _Timer(clock), _Executor()
+    between = BetweenTicks(mode, timer=lambda: timer, clock=clock)
+    for share in (0.05, 0.95):
+        timer.ran_for(RECENT, share=share)
+        between.step(executor)
+        assert between.spinning == spinning
+
+
+def test_an_unknown_mode_is_refused():
+    with pytest.raises(ValueError, match="'sometimes' is not one of"):
+        BetweenTicks('sometimes', timer=lambda: None)
