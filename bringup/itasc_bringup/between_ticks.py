@@ -14,10 +14,11 @@ the next tick is more than :data:`SERVE_BEFORE` away, at least every :data:`SERV
 --between-ticks wait|auto``): tick p50 758/811 -> 531/648 us, p99 1141/1198 -> 1026/1053 us,
 991/981 -> 998/998 Hz, 187/379 -> 46/39 ticks dropped.
 
-Spinning keeps a core busy. So ``auto`` (the default) spins only while the ticks take at least
-:data:`SPIN_FROM` of the period (the median of the recent ones), when that third of a tick decides
-whether the rate holds, and waits again below :data:`WAIT_BELOW` (the ticks are shorter while it
-spins); ``spin`` and ``wait`` choose for good.
+Spinning keeps a core busy. So ``auto`` (the default) spins only at :data:`SPIN_RATE` Hz and more
+(the ~0.2 ms a sleep costs a tick matters in a period of a few milliseconds, not in one of 10 ms)
+while the ticks take at least :data:`SPIN_FROM` of the period (the median of the recent ones),
+when that third of a tick decides whether the rate holds, and waits again below
+:data:`WAIT_BELOW` (the ticks are shorter while it spins); ``spin`` and ``wait`` choose for good.
 """
 
 from __future__ import annotations
@@ -27,10 +28,12 @@ import statistics
 import time
 from typing import Any, Callable
 
-__all__ = ['BetweenTicks', 'MODES', 'SPIN_FROM', 'WAIT_BELOW']
+__all__ = ['BetweenTicks', 'MODES', 'SPIN_FROM', 'SPIN_RATE', 'WAIT_BELOW']
 
 MODES = ('auto', 'spin', 'wait')
-#: ``auto`` spins once the ticks take this share of the period ...
+#: ``auto`` spins at this rate [Hz] and more ...
+SPIN_RATE = 250.0
+#: ... once the ticks take this share of the period ...
 SPIN_FROM = 0.5
 #: ... and waits again once they take less than this.
 WAIT_BELOW = 0.3
@@ -94,8 +97,10 @@ class BetweenTicks:
         return self.spinning
 
     def share(self) -> float:
-        """The median share of the period the newest computing ticks took (0 before there are enough)."""
+        """The median share of the period the newest computing ticks took (0 before there are enough,
+        and below :data:`SPIN_RATE`)."""
         timer = self._timer()
-        if timer is None or len(timer.stamps) < RECENT or self._clock() - timer.stamps[-1] > STALE:
+        if timer is None or timer.rate < SPIN_RATE or len(timer.stamps) < RECENT \
+                or self._clock() - timer.stamps[-1] > STALE:
             return 0.0
         return statistics.median(itertools.islice(reversed(timer.durations), RECENT // 2)) * timer.rate

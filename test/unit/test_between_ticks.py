@@ -1,5 +1,6 @@
-"""What the bootstrap's thread does between ticks (itasc_bringup.between_ticks): ``auto`` spins
-while the ticks take at least half the period and waits again once they take less than 30 %;
+"""What the bootstrap's thread does between ticks (itasc_bringup.between_ticks): ``auto`` spins at
+250 Hz and more while the ticks take at least half the period and waits again once they take less
+than 30 %;
 spinning, it runs the Timer's due ticks itself and serves the executor only while the next tick
 is far, yet every 2 ms at least."""
 
@@ -79,6 +80,15 @@ def test_auto_spins_while_the_ticks_fill_half_the_period_and_waits_again_below_3
     timer.ran_for(RECENT, share=0.45)  # not enough to start again
     between.step(executor)
     assert not between.spinning and executor.waits[-1] == WAIT
+
+
+def test_auto_waits_below_250_hz_however_long_the_ticks(auto):
+    _, _, executor, clock, changes = auto
+    timer = _Timer(clock, rate=100.0)  # a 10 ms period: ~0.2 ms a tick do not decide the rate
+    between = BetweenTicks('auto', timer=lambda: timer, clock=clock)
+    timer.ran_for(RECENT, share=0.9)
+    between.step(executor)
+    assert not between.spinning and executor.waits == [WAIT]
 
 
 def test_auto_waits_once_the_timer_stopped_computing(auto):
