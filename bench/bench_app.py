@@ -310,6 +310,7 @@ def _line(what: str, r: dict) -> str:
 
 
 def main() -> None:
+    from itasc_bringup.between_ticks import MODES
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--app', default='approach_object')
     parser.add_argument('--rate', type=float, default=1000.0)
@@ -317,7 +318,7 @@ def main() -> None:
     parser.add_argument('--scaling-seconds', type=float, default=5.0, help='run time of the 1..50 Tasks runs')
     parser.add_argument('--deploy', choices=('single', 'per-composite'), default='single')
     parser.add_argument('--record', action='store_true')
-    parser.add_argument('--between-ticks', choices=('auto', 'spin', 'wait'), default='auto',
+    parser.add_argument('--between-ticks', choices=MODES, default='auto',
                         help="the bootstrap's --between-ticks (auto: spin while the ticks fill half the period)")
     parser.add_argument('--drivers', choices=('stand-in', 'external'), default='stand-in',
                         help="an outside driver (ros2_control): run the stand-in its kind names, or "
