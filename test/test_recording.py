@@ -448,3 +448,32 @@ def test_a_recording_without_the_robots_transforms_is_named_at_the_end(context, 
         executor.shutdown()
         recorder.destroy_node()
         node.destroy_node()
+
+
+def test_a_stalled_writer_process_blocks_no_write_and_loses_no_message(tmp_path):
+    """The control loop's thread hands the recording to the writer process through a pipe, itself:
+    a writer process that stalls (stopped here, as a loaded machine may hold it) makes no write
+    wait for it; what the pipe cannot take waits in the recording process, and the closed bag
+    holds every message, in order."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    from itasc_bringup.recording.bag import qos_profiles
+    from itasc_bringup.recording.writer import PIPE_SIZE, BagProcess
+
+    bag = BagProcess(tmp_path / 'run.mcap', compression='none')
+    key = bag.add_topic('/app/text', 'std_msgs/msg/String', profiles=qos_profiles([QoSProfile(depth=10)]))
+    os.kill(bag._process.pid, signal.SIGSTOP)
+    try:
+        count = 3 * PIPE_SIZE // 500
+        for k in range(count):  # a write that waited for the stopped writer would hang here
+            data = serialize_message(String(data=f'{k:06d}' + 'x' * 480))
+            bag.write_all([(key, data, 1_000 + k, 1_000 + k)])
+        assert bag.unsent > PIPE_SIZE  # kept back, not lost, not waited for
+    finally:
+        os.kill(bag._process.pid, signal.SIGCONT)
+    bag.close()
+    assert bag._process.returncode == 0
+    _, messages = _read_all(tmp_path / 'run.mcap')
+    assert [m.data[:6] for _, _, m in messages] == [f'{k:06d}' for k in range(count)]
+    assert [t for _, t, _ in messages] == [1_000 + k for k in range(count)]
