@@ -36,7 +36,7 @@ from typing import Any, Callable, Iterator
 from rclpy.context import Context
 from rclpy.node import Node
 
-from .cdr import serialize
+from .cdr import sample_decoder, serialize
 from .qos import DATA_QOS
 from .samples import as_message, as_sample
 
@@ -321,8 +321,13 @@ class InputPort:
             output.link(self)
             self._links.append(output)
         else:
+            decode = sample_decoder(self.spec.msg_type)
+            if decode is None:  # a type without a sample class: its messages are delivered
+                callback = functools.partial(self.deliver, topic=topic)
+            else:  # its CDR bytes become the sample, no ROS message built on the way
+                callback = functools.partial(self._deliver_cdr, decode, topic)
             self._subscriptions.append(self._node.create_subscription(
-                self.spec.msg_type, topic, functools.partial(self.deliver, topic=topic), DATA_QOS))
+                self.spec.msg_type, topic, callback, DATA_QOS, raw=decode is not None))
             self.remote.add(topic)
 
     def relink(self, old: OutputPort, new: OutputPort) -> None:
@@ -353,6 +358,9 @@ class InputPort:
         """Whether ``topic`` is read over DDS from a composite that this process has switched off
         (:meth:`LocalBus.set_idle`): what came from there was written before, and holds no more."""
         return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.idle)
+
+    def _deliver_cdr(self, decode: Callable[[bytes], Any], topic: str, data: bytes) -> None:
+        self.deliver(decode(data), topic)
 
     def deliver(self, msg: Any, topic: str) -> None:
         """Take a sample (or its ROS message, turned into the sample) from ``topic``."""

@@ -4,7 +4,8 @@ An entity writes a *sample*: the fields of its port's ROS message, numbers as nu
 as tuples, the stamp as seconds (``t``). A co-located input gets the sample object itself, so
 nothing is converted, copied or parsed between entities of one process; the port builds the ROS
 message only when a DDS reader wants it (another process, ``ros2 topic echo``), and an input fed
-over DDS turns each message into the sample its entity reads. A sample is never changed after it
+over DDS turns each message's CDR bytes into the sample its entity reads
+(:func:`~itasc_core.communication.cdr.sample_decoder`, no ROS message built). A sample is never changed after it
 was written (every reader may hold it).
 
 A sample class is registered for its message type (:func:`sample_of`); a port whose message type
@@ -22,8 +23,8 @@ from builtin_interfaces.msg import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-__all__ = ['Sample', 'sample_of', 'as_sample', 'as_message', 'stamp', 'seconds', 'floats', 'JointSample',
-           'Float64Sample']
+__all__ = ['Sample', 'sample_of', 'sample_class', 'as_sample', 'as_message', 'stamp', 'seconds', 'floats',
+           'JointSample', 'Float64Sample']
 
 _SAMPLES: dict[type, type['Sample']] = {}
 
@@ -56,6 +57,11 @@ def sample_of(message: type):
         _SAMPLES[message] = cls
         return cls
     return register
+
+
+def sample_class(message: type) -> type['Sample'] | None:
+    """The sample class of ROS messages of type ``message`` (None: its messages are their own samples)."""
+    return _SAMPLES.get(message)
 
 
 def as_sample(msg: Any) -> Any:

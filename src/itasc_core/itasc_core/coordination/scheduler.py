@@ -25,7 +25,7 @@ from std_msgs.msg import Float64
 from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENGAGED, SAFETY, SAFETY_EVENT,
                                           SCHEDULER_ACTIVATE, SCHEDULER_ACTIVATED, SCHEDULER_INITIALIZE,
                                           SCHEDULER_INITIALIZED, event, named)
-from ..communication.cdr import serialize
+from ..communication.cdr import sample_decoder, serialize
 from ..communication.ports import LocalBus
 from ..communication.qos import DATA_QOS
 from ..communication.samples import Float64Sample
@@ -78,11 +78,13 @@ class Scheduler(Entity):
                                      accept=self._accepts, immediate=True)
         self._trigger_sub = None
         if remote_trigger:
+            decode = sample_decoder(Float64)  # the CDR bytes, no ROS message built
+            assert decode is not None  # Float64Sample
             self._trigger_sub = self.create_subscription(
-                Float64, composite.trigger_topic, self._on_trigger, DATA_QOS)
+                Float64, composite.trigger_topic, lambda data: self._on_trigger(decode(data)), DATA_QOS, raw=True)
 
-    def _on_trigger(self, msg: Float64) -> None:
-        self.tick(msg.data)
+    def _on_trigger(self, sample: Float64Sample) -> None:
+        self.tick(sample.data)
         if self._after_trigger is not None:
             self._after_trigger()
 
