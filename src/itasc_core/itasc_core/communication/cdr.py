@@ -303,7 +303,7 @@ def _compile_decoder(cls: Any) -> Callable[[bytes], Any] | None:
     fields_args = ', '.join(f'{name}=f_{name}' for name in names)
     source = '\n'.join([
         'def decode(data):',
-        '    if data[1] != 1:  # not little-endian plain CDR (XCDR1) as Fast DDS writes it: rclpy reads it',
+        '    if len(data) >= 4 and data[1] != 1:  # not little-endian plain CDR (XCDR1): rclpy reads it',
         '        return as_sample(deserialize_message(data, message))',
         '    try:',
         *('        ' + line for line in body),
