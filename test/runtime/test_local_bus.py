@@ -154,3 +154,55 @@ def test_a_reader_in_another_process_gets_the_message_of_each_sample_written():
     finally:
         destroy_all(theirs, context=other)
         destroy_all(executor, node)
+
+
+def test_the_inputs_of_a_composite_share_one_reader_of_a_remote_topic_and_it_outlives_its_first_port():
+    """Two Monitors of a composite watching the state of a Task in another process: one DDS reader
+    in their process hands every sample to both (each reader takes and converts every sample). When
+    the port whose node holds the reader goes (a removed entity), the other's node reads on, and
+    once the last port went the process holds no reader of the topic. An input of another composite
+    of the process has a reader of its own (a composite switched off does not listen)."""
+    rclpy.init()
+    other = Context()
+    rclpy.init(context=other)
+    executor, theirs = make_executor(), make_executor(context=other)
+    Runtime(executor=executor, namespace='/bus')
+    try:
+        source = rclpy.create_node('source', namespace='/bus/task', context=other)
+        theirs.add_node(source)
+        output = OutputPort(source, _spec('output'))
+        nodes = [rclpy.create_node(name, namespace=namespace) for name, namespace in
+                 (('tracking_error', '/bus/itasc'), ('converged', '/bus/itasc'), ('arrived', '/bus/itasc/child'))]
+        for node in nodes:
+            executor.add_node(node)
+        first, second, elsewhere = (InputPort(node, _spec('input')) for node in nodes)
+        for port in (first, second, elsewhere):
+            port.connect(TOPIC)
+
+        def readers() -> list[str]:
+            return sorted(f'{i.node_namespace}/{i.node_name}' for i in source.get_subscriptions_info_by_topic(TOPIC))
+
+        def send_until(condition, value: float) -> bool:
+            deadline = time.monotonic() + 10
+            while not condition() and time.monotonic() < deadline:
+                output.write(Float64(data=value))
+                theirs.spin_once(timeout_sec=0.005)
+                executor.spin_once(timeout_sec=0.005)
+            return condition()
+
+        assert send_until(lambda: first.latest is not None and second.latest is not None
+                          and elsewhere.latest is not None, 1.0)
+        assert readers() == ['/bus/itasc/child/arrived', '/bus/itasc/tracking_error']
+        assert second.latest is first.latest  # one sample, decoded once, for both
+        first.disconnect()  # its node held the reader
+        assert send_until(lambda: readers() == ['/bus/itasc/child/arrived', '/bus/itasc/converged'], 1.0)
+        assert send_until(lambda: second.latest.data == 2.0, 2.0)
+        second.disconnect()
+        assert send_until(lambda: readers() == ['/bus/itasc/child/arrived'], 3.0)
+        received = second.received
+        assert send_until(lambda: elsewhere.latest.data == 4.0, 4.0)
+        assert second.received == received
+    finally:
+        destroy_all(executor)
+        destroy_all(theirs)
+        rclpy.try_shutdown(context=other)

@@ -8,7 +8,8 @@ that connected ports agree on all of it before connecting them.
 Locality is a deployment choice: an input whose output lives in the same process is linked to it
 directly (the sample object is handed over, :mod:`.samples`: no message built, no serialisation,
 no executor hop); otherwise it subscribes to the output's topic over DDS and turns each message
-into its sample. An output publishes only while a DDS reader listens (another process, ``ros2
+into its sample, with one reader per topic for all the inputs of a composite that read it
+(:class:`_RemoteReader`). An output publishes only while a DDS reader listens (another process, ``ros2
 topic echo``), so co-located connections pay for nothing they do not need; it then sends the
 sample's CDR bytes (:mod:`.cdr`), not a ROS message built from the sample and converted by rclpy
 (a ``Features`` sample 145 -> 88 us a publish on a 2-core VM). Observers in the process (the
@@ -25,7 +26,6 @@ trigger.
 
 from __future__ import annotations
 
-import functools
 import threading
 import time
 import weakref
@@ -116,6 +116,9 @@ class LocalBus:
     def __init__(self) -> None:
         self._outputs: dict[str, OutputPort] = {}
         self._watchers: list[Callable[[OutputPort], None]] = []
+        #: The DDS readers of remote topics, by (topic, message type, composite namespace).
+        self._readers: dict[tuple[str, type, str], _RemoteReader] = {}
+        self._readers_lock = threading.Lock()
         #: Namespaces of the composites switched off (their readers do not count as listening).
         self.idle: frozenset[str] = frozenset()
 
@@ -173,6 +176,23 @@ class LocalBus:
 
     def lookup(self, topic: str) -> 'OutputPort | None':
         return self._outputs.get(topic)
+
+    def read_remote(self, topic: str, port: 'InputPort') -> '_RemoteReader':
+        """The reader of ``topic`` (published in another process) that hands its samples to
+        ``port`` too: the one the inputs of ``port``'s composite already read it with, or a new one."""
+        key = (topic, port.spec.msg_type, port._node.get_namespace())
+        with self._readers_lock:
+            reader = self._readers.get(key)
+            if reader is None:
+                reader = self._readers[key] = _RemoteReader(topic, port, gone=lambda: self._readers.pop(key, None))
+            else:
+                reader.join(port)
+            return reader
+
+    def stop_reading(self, reader: '_RemoteReader', port: 'InputPort') -> None:
+        """``port`` takes no more samples from ``reader`` (which goes with its last port)."""
+        with self._readers_lock:
+            reader.leave(port)
 
 
 class ListenedPublisher:
@@ -286,6 +306,52 @@ class OutputPort:
         self._node.destroy_publisher(self._dds.publisher)
 
 
+class _RemoteReader:
+    """The one DDS reader of a topic published in another process, for every input port of a
+    composite that reads it: each reader takes and converts every sample (two Monitors of the
+    program composite reading a Task process's state did it twice a tick, ~100 us of CPU each).
+    It is a subscription of one of those ports' nodes; when that port leaves, the next one's node
+    subscribes before the old subscription goes (no sample is missed)."""
+
+    def __init__(self, topic: str, port: 'InputPort', *, gone: Callable[[], object]) -> None:
+        self.topic = topic
+        self.ports: tuple[InputPort, ...] = (port,)
+        self._gone = gone
+        self._decode = sample_decoder(port.spec.msg_type)
+        self._subscription = self._subscribe(port)
+
+    def _subscribe(self, port: 'InputPort') -> tuple['InputPort', Any]:
+        # its CDR bytes become the sample, no ROS message built on the way (a type without a sample
+        # class: its messages are delivered)
+        callback: Callable[[Any], None] = self._received if self._decode is None else self._received_cdr
+        return port, port._node.create_subscription(port.spec.msg_type, self.topic, callback, DATA_QOS,
+                                                    raw=self._decode is not None)
+
+    def _received_cdr(self, data: bytes) -> None:
+        self._deliver(self._decode(data))  # type: ignore[misc]
+
+    def _received(self, msg: Any) -> None:
+        self._deliver(as_sample(msg))
+
+    def _deliver(self, sample: Any) -> None:
+        for port in self.ports:
+            port.deliver(sample, self.topic)
+
+    def join(self, port: 'InputPort') -> None:
+        self.ports += (port,)
+
+    def leave(self, port: 'InputPort') -> None:
+        self.ports = tuple(p for p in self.ports if p is not port)
+        owner, subscription = self._subscription
+        if owner is not port:
+            return
+        if self.ports:
+            self._subscription = self._subscribe(self.ports[0])
+        else:
+            self._gone()
+        owner._node.destroy_subscription(subscription)
+
+
 class InputPort:
     """Receives samples from one output (or several, for ``multiple`` inputs)."""
 
@@ -294,7 +360,7 @@ class InputPort:
         self._node = node
         self._on_sample = on_sample
         self._links: list[OutputPort] = []
-        self._subscriptions: list = []
+        self._readers: dict[str, _RemoteReader] = {}
         self.sources: list[str] = []
         #: The sources whose output lives in another process: their samples cross DDS and come
         #: later than those of the same tick (at times a tick or more).
@@ -321,13 +387,7 @@ class InputPort:
             output.link(self)
             self._links.append(output)
         else:
-            decode = sample_decoder(self.spec.msg_type)
-            if decode is None:  # a type without a sample class: its messages are delivered
-                callback = functools.partial(self.deliver, topic=topic)
-            else:  # its CDR bytes become the sample, no ROS message built on the way
-                callback = functools.partial(self._deliver_cdr, decode, topic)
-            self._subscriptions.append(self._node.create_subscription(
-                self.spec.msg_type, topic, callback, DATA_QOS, raw=decode is not None))
+            self._readers[topic] = self._bus.read_remote(topic, self)
             self.remote.add(topic)
 
     def relink(self, old: OutputPort, new: OutputPort) -> None:
@@ -350,17 +410,14 @@ class InputPort:
         for output in [o for o in self._links if o.topic == topic]:
             output.unlink(self)
             self._links.remove(output)
-        for subscription in [s for s in self._subscriptions if s.topic_name == topic]:
-            self._node.destroy_subscription(subscription)
-            self._subscriptions.remove(subscription)
+        reader = self._readers.pop(topic, None)
+        if reader is not None:
+            self._bus.stop_reading(reader, self)
 
     def switched_off(self, topic: str) -> bool:
         """Whether ``topic`` is read over DDS from a composite that this process has switched off
         (:meth:`LocalBus.set_idle`): what came from there was written before, and holds no more."""
         return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.idle)
-
-    def _deliver_cdr(self, decode: Callable[[bytes], Any], topic: str, data: bytes) -> None:
-        self.deliver(decode(data), topic)
 
     def deliver(self, msg: Any, topic: str) -> None:
         """Take a sample (or its ROS message, turned into the sample) from ``topic``."""
@@ -377,10 +434,10 @@ class InputPort:
     def disconnect(self) -> None:
         for output in self._links:
             output.unlink(self)
-        for subscription in self._subscriptions:
-            self._node.destroy_subscription(subscription)
+        for reader in self._readers.values():
+            self._bus.stop_reading(reader, self)
         self._links.clear()
-        self._subscriptions.clear()
+        self._readers.clear()
         self.sources.clear()
         self.remote.clear()
         self.samples.clear()
