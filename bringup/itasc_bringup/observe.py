@@ -18,9 +18,8 @@ from typing import Any, Callable
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from itasc_core.communication.cdr import sample_decoder
+from itasc_core.communication.cdr import received_as_sample
 from itasc_core.communication.ports import LocalBus, OutputPort
-from itasc_core.communication.samples import as_sample
 
 __all__ = ['Observer']
 
@@ -55,17 +54,17 @@ class Observer:
     def samples(self, topic: str, msg_type: type, callback: Callback, *, qos: QoSProfile) -> None:
         """Every sample of ``topic`` to ``callback``: tapped, or over DDS, each message turned into
         its sample (once, for ``callback`` and whoever :meth:`share` s the reader)."""
-        decode = sample_decoder(msg_type)  # None: the message is its own sample
+        to_sample, raw = received_as_sample(msg_type)
 
         def receive(received: Any) -> None:
-            sample = as_sample(received) if decode is None else decode(received)
+            sample = to_sample(received)
             callback(topic, sample)
             for other in self._sharing.get(topic, ()):
                 other(topic, sample)
 
         def subscribe() -> Any:
             self._sharing[topic] = []
-            return self._node.create_subscription(msg_type, topic, receive, qos, raw=decode is not None)
+            return self._node.create_subscription(msg_type, topic, receive, qos, raw=raw)
         self.observe(topic, callback, subscribe=subscribe)
 
     def share(self, topic: str, callback: Callback) -> bool:

@@ -115,7 +115,7 @@ class BagProcess:
             return
         self.closed = True
         self._flush_pending()
-        self._unsent.append(memoryview(self._frame(CLOSE, b'')))
+        self._send(self._frame(CLOSE, b''))
         deadline = time.monotonic() + timeout
         while self._unsent and not self._broken and time.monotonic() < deadline:
             select.select([], [self._fd], [], max(0.0, deadline - time.monotonic()))

@@ -181,8 +181,8 @@ class Visualizer(Node):
         # drawn for readers only: building the markers and TF messages took this process 11-28 %
         # of a core at 30 Hz, which a control process on the same two cores missed when nobody
         # looked (no RViz, Foxglove or recording). A reader that joins gets the next drawing.
-        tf_read = self._tf.get_subscription_count() > 0
-        if not (tf_read or self._markers.get_subscription_count() > 0):
+        tf_read, markers_read = self._tf.get_subscription_count() > 0, self._markers.get_subscription_count() > 0
+        if not (tf_read or markers_read):
             return
         transforms, stamp = [], None
         for name, msg in self._joints.items():
@@ -201,7 +201,7 @@ class Visualizer(Node):
             transforms += [transform_msg(e, stamp) for e in moving]
         if transforms:
             self._tf.publish(TFMessage(transforms=transforms))
-        if self._markers.get_subscription_count() > 0:
+        if markers_read:
             self._markers.publish(scene_markers(self.app, self.tree, self.views, stamp))
 
 

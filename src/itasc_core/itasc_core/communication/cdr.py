@@ -37,7 +37,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ['encoder', 'serialize', 'sample_decoder']
+__all__ = ['encoder', 'serialize', 'sample_decoder', 'received_as_sample']
 
 Encode = Callable[[Any], bytes]
 
@@ -279,7 +279,8 @@ def _decode_lines(field: _Field, target: str, index: int) -> list[str]:
     if field.kind == 'numbers':
         return [aligned(4), 'c = U32(b, o)[0]', 'o += 4', f'if c: {aligned(field.size)}',
                 f'{target} = frombuffer(b, "<{field.code}", c, o)', f'o += c * {field.size}']
-    lines = [aligned(4), 'stamp = Fields(sec=unpack_from("<i", b, o)[0], nanosec=U32(b, o + 4)[0])', 'o += 8']
+    lines = [aligned(4), 'sec, nanosec = unpack_from("<iI", b, o)', 'o += 8',
+             'stamp = Fields(sec=sec, nanosec=nanosec)']
     if field.kind == 'time':
         return [*lines, f'{target} = stamp']
     return [*lines, *string('frame_id'), f'{target} = Fields(stamp=stamp, frame_id=frame_id)']
@@ -289,9 +290,7 @@ def _compile_decoder(cls: Any) -> Callable[[bytes], Any] | None:
     from rclpy.serialization import deserialize_message
 
     from itasc_core.communication.samples import as_sample
-    message = getattr(cls, 'MESSAGE', None)
-    if message is None:
-        return None
+    message = cls.MESSAGE
     try:
         fields = _fields(message)
     except Unsupported:
@@ -331,6 +330,16 @@ def sample_decoder(msg_type: type) -> Callable[[bytes], Any] | None:
         cls = sample_class(msg_type)
         _DECODERS[msg_type] = None if cls is None else _compile_decoder(cls)
     return _DECODERS[msg_type]
+
+
+def received_as_sample(msg_type: type) -> tuple[Callable[[Any], Any], bool]:
+    """How a subscription to ``msg_type`` gets its samples: the function from what it takes to the
+    sample, and whether it takes the raw CDR bytes (:func:`sample_decoder`) or rclpy's message."""
+    decode = sample_decoder(msg_type)
+    if decode is not None:
+        return decode, True
+    from itasc_core.communication.samples import as_sample
+    return as_sample, False
 
 
 def message_class(type_name: str) -> type:

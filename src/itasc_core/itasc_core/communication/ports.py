@@ -36,7 +36,7 @@ from typing import Any, Callable, Iterator
 from rclpy.context import Context
 from rclpy.node import Node
 
-from .cdr import sample_decoder, serialize
+from .cdr import received_as_sample, serialize
 from .qos import DATA_QOS
 from .samples import as_message, as_sample
 
@@ -317,23 +317,15 @@ class _RemoteReader:
         self.topic = topic
         self.ports: tuple[InputPort, ...] = (port,)
         self._gone = gone
-        self._decode = sample_decoder(port.spec.msg_type)
+        self._to_sample, self._raw = received_as_sample(port.spec.msg_type)  # CDR bytes: no ROS message built
         self._subscription = self._subscribe(port)
 
     def _subscribe(self, port: 'InputPort') -> tuple['InputPort', Any]:
-        # its CDR bytes become the sample, no ROS message built on the way (a type without a sample
-        # class: its messages are delivered)
-        callback: Callable[[Any], None] = self._received if self._decode is None else self._received_cdr
-        return port, port._node.create_subscription(port.spec.msg_type, self.topic, callback, DATA_QOS,
-                                                    raw=self._decode is not None)
+        return port, port._node.create_subscription(port.spec.msg_type, self.topic, self._received, DATA_QOS,
+                                                    raw=self._raw)
 
-    def _received_cdr(self, data: bytes) -> None:
-        self._deliver(self._decode(data))  # type: ignore[misc]
-
-    def _received(self, msg: Any) -> None:
-        self._deliver(as_sample(msg))
-
-    def _deliver(self, sample: Any) -> None:
+    def _received(self, received: Any) -> None:
+        sample = self._to_sample(received)
         for port in self.ports:
             port.deliver(sample, self.topic)
 

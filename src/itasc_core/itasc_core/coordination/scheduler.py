@@ -25,7 +25,7 @@ from std_msgs.msg import Float64
 from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENGAGED, SAFETY, SAFETY_EVENT,
                                           SCHEDULER_ACTIVATE, SCHEDULER_ACTIVATED, SCHEDULER_INITIALIZE,
                                           SCHEDULER_INITIALIZED, event, named)
-from ..communication.cdr import sample_decoder, serialize
+from ..communication.cdr import received_as_sample, serialize
 from ..communication.ports import LocalBus
 from ..communication.qos import DATA_QOS
 from ..communication.samples import Float64Sample
@@ -78,10 +78,10 @@ class Scheduler(Entity):
                                      accept=self._accepts, immediate=True)
         self._trigger_sub = None
         if remote_trigger:
-            decode = sample_decoder(Float64)  # the CDR bytes, no ROS message built
-            assert decode is not None  # Float64Sample
+            to_sample, raw = received_as_sample(Float64)  # the CDR bytes, no ROS message built
             self._trigger_sub = self.create_subscription(
-                Float64, composite.trigger_topic, lambda data: self._on_trigger(decode(data)), DATA_QOS, raw=True)
+                Float64, composite.trigger_topic, lambda received: self._on_trigger(to_sample(received)), DATA_QOS,
+                raw=raw)
 
     def _on_trigger(self, sample: Float64Sample) -> None:
         self.tick(sample.data)
