@@ -82,7 +82,8 @@ class EventListener:
     entities that are time-triggered themselves, such as a Scheduler waiting to be initialised).
     Sequence numbers are checked per source: a gap is counted in :attr:`lost` and reported through
     ``on_gap`` (it cannot happen with the reliable, keep-all QoS unless a publisher was destroyed
-    with events still in flight).
+    with events still in flight). ``on_held`` is called whenever a common event is buffered (the
+    reader wakes up to drain it).
 
     In a process with an :class:`~.event_hub.EventHub` the listener shares the process's reader of
     each topic; otherwise it subscribes on ``node``. :meth:`destroy` ends the listening (an
@@ -98,6 +99,7 @@ class EventListener:
         accept: Callable[[str], bool] | None = None,
         on_gap: Callable[[str, int, int], None] | None = None,
         immediate: bool = False,
+        on_held: Callable[[], None] | None = None,
     ) -> None:
         self._buffer: deque[Event] = deque()
         self._last_seq: dict[tuple[str, str], int] = {}
@@ -105,6 +107,7 @@ class EventListener:
         self._accept = accept
         self._on_gap = on_gap
         self._immediate = immediate
+        self._on_held = on_held
         self.lost = 0
         self._node = node
         self._topics = list(topics)
@@ -152,6 +155,8 @@ class EventListener:
             self._on_priority(msg)
         else:
             self._buffer.append(msg)
+            if self._on_held is not None:
+                self._on_held()
 
     def drain(self) -> list[Event]:
         """Take every buffered event, oldest first (paper §7.2: empty the buffer on each read)."""

@@ -4,8 +4,10 @@ A pure event processor: it feeds the events of its composite's event topic (and 
 commands) into the life-cycle FSM of :mod:`.lifecycle` and publishes the events that FSM raises.
 Common events are buffered and processed at the Coordinator's next update: after each tick of
 its composite (:meth:`~itasc_core.composition.composer.Composer.coordinate`, when it holds events),
-and periodically between ticks (a timer); priority events (``e_emergency``) are processed on
-arrival (§6.2). It publishes its fully
+and between ticks by a timer at ``update_rate`` that runs only while there is something to update
+(events held, a start-up state that may time out, a fault check under way): an idle timer woke
+every composite's process 200 times a second for nothing. Priority events (``e_emergency``) are
+processed on arrival (§6.2). It publishes its fully
 qualified state on ``<composite namespace>/state`` on every change, and offers the operator
 services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``, ``~/compose``). A
 parent's command of a composition step (``e_<c>_compose_<step>``) goes to the composite's
@@ -58,6 +60,8 @@ class Coordinator(Entity):
         self._state_publisher = self.create_publisher(CoordinatorState, composite.state_topic, STATE_QOS)
         #: Every state entered, in order, with the event that caused it and when (time.monotonic).
         self.history: list[tuple[str, str, float]] = []
+        self._entered_at = self._updated_at = time.monotonic()
+        self._update_timer = self.create_timer(1.0 / update_rate, self.update)
         self.fsm = LifecycleFsm(
             composite=composite.name,
             children=children,
@@ -69,20 +73,19 @@ class Coordinator(Entity):
         )
         self._safety_to_parent = tuple(safety_to_parent)
         self.operator = Operator(self, composite=composite, fsm=self.fsm, raise_own=self._raiser.raise_event,
-                                 to_parent=None if self.is_root else self._to_parent, steps=steps)
+                                 to_parent=None if self.is_root else self._to_parent, steps=steps,
+                                 wake=self.wake)
         c = composite.name
         #: The answers of this composite's Composer to a composition step (:mod:`..composition.steps`).
         self._step_answers = (event(c, COMPOSED), event(c, COMPOSE_FAILED))
         self._structure = {event(c, CHILD_ADDED): self.fsm.adopt, event(c, CHILD_REMOVED): self.fsm.release}
         self._events = self.listen(topics=[composite.events_topic], on_priority=self._process,
-                                     accept=self._accepts, on_gap=self._gap)
+                                     accept=self._accepts, on_gap=self._gap, on_held=self.wake)
         self._parent_events = None if self.is_root else self.listen(
             topics=[composite.parent_events_topic], on_priority=self._process_parent,
-            accept=self._accepts_parent, on_gap=self._gap)
+            accept=self._accepts_parent, on_gap=self._gap, on_held=self.wake)
         self._notifications = {event(composite.name, n) for n in NOTIFICATIONS}
         self._startup_timeout = startup_timeout
-        self._entered_at = self._updated_at = time.monotonic()
-        self._update_timer = self.create_timer(1.0 / update_rate, self.update)
 
     @property
     def state(self) -> str:
@@ -114,6 +117,13 @@ class Coordinator(Entity):
     def _gap(self, source: str, last: int, seq: int) -> None:
         self.get_logger().error(f'lost events from {source}: after #{last} came #{seq}')
 
+    def wake(self) -> None:
+        """Update soon (within an update period), and keep updating while there is something to
+        update (:meth:`update` sends the timer back to sleep)."""
+        if self._update_timer.is_canceled():
+            self._updated_at = time.monotonic()  # asleep on purpose: not a stall (STALL)
+            self._update_timer.reset()
+
     @property
     def holds_events(self) -> bool:
         """Whether common events wait for the next update."""
@@ -136,6 +146,8 @@ class Coordinator(Entity):
                                      detail=f'{self.state} waited {self._startup_timeout:g} s for {waiting}')
             self.fsm.process(event(self.composite.name, TIMEOUT))
         self.operator.update()
+        if not (self.holds_events or self.fsm.starting_up or self.operator.checking):
+            self._update_timer.cancel()
 
     def _process(self, msg) -> None:
         change = self._structure.get(msg.name)
@@ -158,6 +170,7 @@ class Coordinator(Entity):
         raiser.raise_event(name)  # the raiser marks priority events (event_names.is_priority)
 
     def _publish_state(self, state: str, previous: str, event: str) -> None:
+        self.wake()  # a start-up state's timeout is checked at the updates
         self._entered_at = time.monotonic()
         self.history.append((state, event, self._entered_at))
         msg = CoordinatorState()

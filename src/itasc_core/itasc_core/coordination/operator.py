@@ -53,11 +53,13 @@ class Operator:
     """The operator services of one Coordinator, and the fault checks before a recovery."""
 
     def __init__(self, node, *, composite: CompositeContext, fsm: LifecycleFsm, raise_own: Callable[..., None],
-                 to_parent: EventRaiser | None, steps: Iterable[str] = ()) -> None:
+                 to_parent: EventRaiser | None, steps: Iterable[str] = (),
+                 wake: Callable[[], None] = lambda: None) -> None:
         """``raise_own(name, detail=...)`` raises as the Coordinator on its composite's topic;
         ``to_parent`` on the parent's (None for the root); ``steps``: the composite's
-        composition steps."""
+        composition steps; ``wake()`` has :meth:`update` called soon and while :attr:`checking`."""
         self._node = node
+        self._wake = wake
         self._composite = composite
         self._name = composite.name
         self._fsm = fsm
@@ -161,9 +163,15 @@ class Operator:
         self._number += 1
         children = list(self._fsm.children)
         self._check = FaultCheck(self._number, {COMPOSER, *children}, time.monotonic())
+        self._wake()  # the check ends by its answers or its timeout, seen at the updates
         self._raise_own(event(self._name, CHECK_FAULTS), detail=check_request(self._number, self.faults.own_sources()))
         for child in children:
             self._raise_own(event(child, CHECK_FAULTS), detail=check_request(self._number, []))
+
+    @property
+    def checking(self) -> bool:
+        """A fault check is under way (:meth:`update` ends it)."""
+        return self._check is not None
 
     def update(self) -> None:
         check = self._check
