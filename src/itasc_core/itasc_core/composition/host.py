@@ -34,6 +34,8 @@ from .model import CompositeModel
 
 #: Time to let the last events (e_<c>_stopped) reach the parent before the process exits.
 LINGER = 0.5
+#: How often the process looks whether its parent is gone and its composite stopped [s].
+CHECK_PERIOD = 0.05
 
 
 def parent_gone(pid: int) -> Callable[[], bool]:
@@ -70,16 +72,21 @@ def main(argv: list[str] | None = None) -> int:
     orphaned = parent_gone(args.parent_pid)
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     stopped_at = None
+    looked_at = 0.0
     try:
         while True:
-            executor.spin_once(timeout_sec=0.05)
+            executor.spin_once(timeout_sec=CHECK_PERIOD)
             runtime.reap()
+            now = time.monotonic()
+            if now - looked_at < CHECK_PERIOD:
+                continue  # a spin runs one callback: not a look at the parent and the state per message
+            looked_at = now
             if orphaned():
                 composer.get_logger().error(f'parent process {args.parent_pid} is gone; {model.name} ends')
                 break
             if stopped_at is None and composer.coordinator.state.endswith('NotifyStopped'):
-                stopped_at = time.monotonic()
-            if stopped_at is not None and time.monotonic() - stopped_at > LINGER:
+                stopped_at = now
+            if stopped_at is not None and now - stopped_at > LINGER:
                 break
     finally:
         runtime.shutdown(orderly=stopped_at is not None)
