@@ -195,6 +195,10 @@ class LocalBus:
             reader.leave(port)
 
 
+#: The namespace the ROS graph gives an endpoint whose node it does not know yet (rmw_dds_common).
+UNKNOWN_NAMESPACE = '_NODE_NAMESPACE_UNKNOWN_'
+
+
 class ListenedPublisher:
     """A publisher that sends a sample, as its CDR bytes, only while a DDS reader listens (a
     publish with a reader costs a Fast DDS send in the publishing thread); who listens is looked
@@ -222,10 +226,14 @@ class ListenedPublisher:
         if not count or not idle:
             return count > 0
         if self._looked_for != (count, idle):  # a graph query: only when readers or idle composites changed
-            self._looked_for = (count, idle)
+            readers = self._node.get_subscriptions_info_by_topic(self._topic)
             self._listened = any(
                 not any(info.node_namespace == ns or info.node_namespace.startswith(ns + '/') for ns in idle)
-                for info in self._node.get_subscriptions_info_by_topic(self._topic))
+                for info in readers)
+            # A reader whose node DDS has not told of yet (a loaded machine) has no namespace: it
+            # listens until it has one, looked up again at the next recheck.
+            known = len(readers) == count and all(info.node_namespace != UNKNOWN_NAMESPACE for info in readers)
+            self._looked_for = (count, idle) if known else None
         return self._listened
 
     def publish(self, sample: Any) -> None:
