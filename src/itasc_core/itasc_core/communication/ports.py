@@ -37,7 +37,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 from .cdr import received_as_sample, serialize
-from .qos import DATA_QOS
+from .qos import DATA_QOS, DATA_READER_QOS
 from .samples import as_message, as_sample
 
 __all__ = [
@@ -329,8 +329,8 @@ class _RemoteReader:
         self._subscription = self._subscribe(port)
 
     def _subscribe(self, port: 'InputPort') -> tuple['InputPort', Any]:
-        return port, port._node.create_subscription(port.spec.msg_type, self.topic, self._received, DATA_QOS,
-                                                    raw=self._raw)
+        return port, port._node.create_subscription(port.spec.msg_type, self.topic, self._received,
+                                                    DATA_READER_QOS, raw=self._raw)
 
     def _received(self, received: Any) -> None:
         sample = self._to_sample(received)

@@ -27,7 +27,7 @@ from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENG
                                           SCHEDULER_INITIALIZED, event, named)
 from ..communication.cdr import received_as_sample, serialize
 from ..communication.ports import LocalBus
-from ..communication.qos import DATA_QOS
+from ..communication.qos import DATA_QOS, DATA_READER_QOS
 from ..communication.samples import Float64Sample
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
@@ -80,8 +80,8 @@ class Scheduler(Entity):
         if remote_trigger:
             to_sample, raw = received_as_sample(Float64)  # the CDR bytes, no ROS message built
             self._trigger_sub = self.create_subscription(
-                Float64, composite.trigger_topic, lambda received: self._on_trigger(to_sample(received)), DATA_QOS,
-                raw=raw)
+                Float64, composite.trigger_topic, lambda received: self._on_trigger(to_sample(received)),
+                DATA_READER_QOS, raw=raw)
 
     def _on_trigger(self, sample: Float64Sample) -> None:
         self.tick(sample.data)
