@@ -3,9 +3,8 @@
 Events must never be lost (paper §7.2: "a buffer must be used to avoid the loss of events"), so
 they travel reliably with a deep history. Data flow is offered reliably with a short queue (a
 recorder wants every sample it can get) and read best effort between composites: a controller
-wants the newest sample. What
-comes from another program (a driver's joint states, a pose, a setpoint topic) is read best effort,
-so that any publisher matches.
+wants the newest sample. What comes from another program (a driver's joint states, a pose, a
+setpoint topic) is read best effort, so that any publisher matches.
 """
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -58,7 +57,7 @@ DATA_QOS = QoSProfile(
 #: back every sample after a lost datagram until the writer's next heartbeat has it sent again (up
 #: to 0.1 s, :mod:`.dds`), then hand over the old one first. It also saves the writer the
 #: acknowledgements it tracks for a reliable reader (``--deploy per-composite`` at 500 Hz, CPU a
-#: tick over every process: 3951/3899/4113 -> 3714/3798/3882 us, 2-core VM).
+#: tick over the processes but the display: 3665/3573/3631 -> 3406/3446/3563 us, 2-core VM).
 DATA_READER_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,
