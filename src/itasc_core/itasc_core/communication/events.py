@@ -82,8 +82,8 @@ class EventListener:
     entities that are time-triggered themselves, such as a Scheduler waiting to be initialised).
     Sequence numbers are checked per source: a gap is counted in :attr:`lost` and reported through
     ``on_gap`` (it cannot happen with the reliable, keep-all QoS unless a publisher was destroyed
-    with events still in flight). ``on_held`` is called whenever a common event is buffered (the
-    reader wakes up to drain it).
+    with events still in flight). ``on_held`` is called when a common event is buffered into an empty
+    buffer (the reader wakes up to drain it).
 
     In a process with an :class:`~.event_hub.EventHub` the listener shares the process's reader of
     each topic; otherwise it subscribes on ``node``. :meth:`destroy` ends the listening (an
@@ -155,7 +155,7 @@ class EventListener:
             self._on_priority(msg)
         else:
             self._buffer.append(msg)
-            if self._on_held is not None:
+            if self._on_held is not None and len(self._buffer) == 1:  # the reader drains all it holds
                 self._on_held()
 
     def drain(self) -> list[Event]:
