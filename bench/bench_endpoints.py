@@ -12,7 +12,8 @@ holds more of them:
   creation costs grow with readers x writers: a program whose every entity offers rclpy's six
   parameter services (a reader and a writer each) deploys in time quadratic in its size. Hence
   entities offer none: each composite's Configurator serves its entities' parameters
-  (``itasc_core.configuration.parameter_service``).
+  (``itasc_core.configuration.parameter_service``); and the entities of a process share one
+  ``/rosout`` and one ``/parameter_events`` writer (``itasc_core.communication.process_writers``).
 
 Here (2-core VM, 2026-11-27): publishers 0.37-0.41 ms each over 1200, subscriptions 0.41-0.54,
 services 0.63 -> 2.18 ms each from the first 300 to the fourth; publishers and subscriptions in

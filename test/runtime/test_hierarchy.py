@@ -128,9 +128,9 @@ def test_stop_goes_through_stopping_and_the_four_stopped_substates(hierarchy):
     hierarchy.spin_for(0.1)
     remaining = [n.get_fully_qualified_name() for n in hierarchy.executor.get_nodes()]
     # Only the root's Coordinator, Composer and Configurator remain, for the bootstrap to destroy,
-    # and the process's event hub
-    assert sorted(remaining) == ['/root/_event_hub', '/root/composer', '/root/configurator', '/root/coordinator',
-                                 '/root/test_driver']
+    # and the process's event hub and writers (named after the root)
+    assert sorted(remaining) == ['/root', '/root/_event_hub', '/root/composer', '/root/configurator',
+                                 '/root/coordinator', '/root/test_driver']
 
 
 @pytest.mark.parametrize('hierarchy', [model(safety={'raise_to_parent': ['e_program_fault']})], indirect=True)

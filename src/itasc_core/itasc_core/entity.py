@@ -12,11 +12,12 @@ from functools import wraps
 from typing import Any, Callable
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
+from rclpy.utilities import get_default_context
 
 from .communication.events import EventListener, EventRaiser, events_topic
+from .communication.process_writers import PARAMETER_EVENTS, ProcessWriters, serving_nothing
 from .pace import PACE
 
 __all__ = ['CompositeContext', 'Entity']
@@ -50,13 +51,6 @@ class CompositeContext:
         return CompositeContext(name=name, namespace=f'{self.namespace}/{name}', parent_namespace=self.namespace)
 
 
-#: rclpy's ``~/get_type_description`` service outlives a node destroyed soon after it left an
-#: EventsExecutor (it stays in the ROS graph for the life of the process), so an entity removed at
-#: run time would not be gone from the graph. Our message types are installed wherever our nodes
-#: are looked at, so entities go without it.
-_NO_TYPE_DESCRIPTION_SERVICE = Parameter('start_type_description_service', value=False)
-
-
 def _paced(call: Callable) -> Callable:
     """``call`` (a method of rclpy's Node that creates or destroys an endpoint), made in a gap
     between ticks when the calling thread is paced (:mod:`.pace`)."""
@@ -73,20 +67,33 @@ class Entity(Node):
     No entity offers rclpy's six parameter services: each node's six are twelve DDS endpoints that
     every later endpoint of the process is matched against, which made bring-up grow with the
     square of the number of Tasks. The Configurator of each composite serves its entities'
-    parameters instead (:mod:`.configuration.parameter_service`).
+    parameters instead (:mod:`.configuration.parameter_service`). For the same reason an entity
+    logs to ``/rosout`` and announces its parameter changes on ``/parameter_events`` through its
+    process's writers (:mod:`.communication.process_writers`), when the process has them.
     """
 
     def __init__(self, name: str, *, composite: CompositeContext) -> None:
         PACE.gap()
-        super().__init__(name, namespace=composite.namespace, parameter_overrides=[_NO_TYPE_DESCRIPTION_SERVICE],
-                         start_parameter_services=False)
+        writers = ProcessWriters.of(get_default_context())
+        shared_rosout = writers is not None and writers.logs(composite.namespace)
+        super().__init__(name, namespace=composite.namespace, enable_rosout=not shared_rosout, **serving_nothing())
+        #: held while the node lives: its log lines go out on the process's ``/rosout`` writer
+        self._rosout = writers.rosout(self.get_logger().name) if writers and shared_rosout else None
         self.composite = composite
         self.entity_name = name
         self._raisers: list[EventRaiser] = []
         self._raiser = self.raiser(topic=composite.events_topic)
         self._listeners: list[EventListener] = []
 
-    create_publisher = _paced(Node.create_publisher)
+    _create_publisher = _paced(Node.create_publisher)
+
+    def create_publisher(self, msg_type: Any, topic: str, *args, **kwargs) -> Publisher:
+        """rclpy's, but ``/parameter_events`` (rclpy's Node makes one for itself) is the process's."""
+        writers = ProcessWriters.of(self.context)
+        if topic == PARAMETER_EVENTS and writers is not None:
+            return writers.parameter_events
+        return self._create_publisher(msg_type, topic, *args, **kwargs)
+
     create_subscription = _paced(Node.create_subscription)
     create_service = _paced(Node.create_service)
     create_client = _paced(Node.create_client)
@@ -153,3 +160,4 @@ class Entity(Node):
         for raiser in self._raisers:
             raiser.destroy()
         super().destroy_node()
+        self._rosout = None

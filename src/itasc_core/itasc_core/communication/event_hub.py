@@ -41,6 +41,7 @@ from rclpy.subscription import Subscription
 
 from itasc_msgs.msg import Event
 
+from .process_writers import process_node
 from .qos import EVENT_LISTENER_QOS, EVENT_QOS
 
 __all__ = ['EventHub']
@@ -87,9 +88,7 @@ class EventHub:
         """Give ``executor``'s context a hub, on a hidden node in ``namespace`` spun by ``executor``."""
         hub = cls._hubs.get(executor.context)
         if hub is None:
-            node = Node(cls.NODE_NAME, namespace=namespace, context=executor.context)
-            executor.add_node(node)
-            hub = cls._hubs[executor.context] = cls(node)
+            hub = cls._hubs[executor.context] = cls(process_node(executor, name=cls.NODE_NAME, namespace=namespace))
         return hub
 
     @classmethod

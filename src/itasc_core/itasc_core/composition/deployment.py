@@ -31,6 +31,7 @@ from typing import Callable, Iterable, Literal
 from rclpy.node import Node
 
 from ..communication.event_hub import EventHub
+from ..communication.process_writers import ProcessWriters
 from ..communication.ports import LocalBus
 from ..pace import PACE
 from .model import CompositeModel
@@ -97,6 +98,8 @@ class Runtime:
         #: the process's one reader per event topic, shared by every entity created from now on;
         #: ``namespace``: that of the composite this process was started for
         self.events = EventHub.install(executor, namespace=namespace)
+        #: the process's ``/rosout`` and ``/parameter_events`` writers, shared by its entities
+        self.writers = ProcessWriters.install(executor, namespace=namespace)
         #: the outputs of this process's entities, by topic (in-process data flow)
         self.bus = LocalBus.of(executor.context)
 
