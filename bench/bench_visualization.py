@@ -85,8 +85,13 @@ def run_once(app: str, *, visualization: bool, seconds: float, settle: float, ra
     def start(node, composer) -> None:  # exactly what the bootstrap starts
         if visualization:
             from itasc_bringup.visualization import start_visualization
-            end_visualization[0] = start_visualization(app, model=spec, node=node, composer=composer).end
+            shown = start_visualization(app, model=spec, node=node, composer=composer)
+            end_visualization[0] = shown.end
+            joins.append(shown.join)
+    joins: list = []
     running = run_application(spec, before_configure=start)
+    for join in joins:  # Running: the bootstrap lets the display join now
+        join()
     executor, composer = running.executor, running.composer
     spin_for(executor, settle)
     composer.timer.durations.clear()

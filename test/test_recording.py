@@ -440,7 +440,7 @@ def test_a_recording_without_the_robots_transforms_is_named_at_the_end(context, 
             publisher.publish(publisher.msg_type())
         assert spin_until(executor, lambda: recorder.last(markers) is not None
                           and recorder.last('/tf_static') is not None, 5.0)
-        visualization = Visualization(end=lambda: None, process=dead, markers=markers, started_at=time.monotonic())
+        visualization = Visualization(end=lambda: None, process=dead, markers=markers, joined_at=time.monotonic())
         assert _await_first_drawing(executor, visualization, recorder) == ['/tf']
         # no visualization (a composition model of the pattern itself): nothing is missing
         assert _await_first_drawing(executor, Visualization(end=lambda: None), recorder) == []

@@ -5,6 +5,7 @@ field is in the recording."""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -516,7 +517,6 @@ def test_nothing_is_drawn_while_nobody_looks_and_a_reader_that_joins_gets_the_sc
     markers (no RViz, Foxglove or recording) it builds neither (it took 11-28 % of a core at
     30 Hz, beside the control processes); a reader that joins gets the robot's transforms at the
     newest joint state and the scene's markers within a few drawings."""
-    import time
 
     import rclpy
     from rclpy.context import Context
@@ -542,11 +542,7 @@ def test_nothing_is_drawn_while_nobody_looks_and_a_reader_that_joins_gets_the_sc
     executor.add_node(display)
     executor.add_node(driver)
 
-    def spin(seconds: float, until=lambda: False) -> bool:
-        deadline = time.monotonic() + seconds
-        while not until() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-        return until()
+    spin = functools.partial(_spin, executor)
     try:
         joint_state = driver.create_publisher(JointState, f'/{APP}/Driver_{robot.name}/joint_state', DATA_QOS)
         assert spin(10.0, lambda: joint_state.get_subscription_count() > 0)
@@ -573,9 +569,60 @@ def test_nothing_is_drawn_while_nobody_looks_and_a_reader_that_joins_gets_the_sc
         rclpy.try_shutdown(context=context)
 
 
+def _spin(executor, seconds: float, until=lambda: False) -> bool:
+    """Spin ``executor`` until ``until()`` or ``seconds`` passed; ``until()``."""
+    import time
+    deadline = time.monotonic() + seconds
+    while not until() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
+    return until()
+
+
 def robot_joints(app) -> dict[str, int]:
     """The moving joints of the application's first robot, in Pinocchio's order."""
     from itasc_bringup.visualization.description import robot_description
     robot = app.program.robots[0]
     model = pin.buildModelFromXML(robot_description(robot))
     return {model.names[i]: model.idx_qs[i] for i in range(1, model.njoints) if model.nqs[i] > 0}
+
+
+def test_the_display_process_joins_dds_only_when_the_bootstrap_feeds_it_once_the_application_runs():
+    """A participant present during the bring-up takes in the discovery of every endpoint the
+    bring-up makes (a program of 50 Tasks came up 20-30 % later with it there): the visualization
+    process imports meanwhile, but its node shows up in the graph only after the first frame of the
+    feed, which the bootstrap sends once the root is Running (``Visualization.join``)."""
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from itasc_bringup.visualization.feed import FeedWriter, LatestSamples
+
+    context = Context()
+    rclpy.init(context=context)
+    observer = rclpy.create_node('observer', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(observer)
+    display = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', APP, '--feed'],
+                               stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    description = f'/{APP}/panda/robot_description'
+
+    def joined() -> bool:
+        return ('visualization', f'/{APP}') in observer.get_node_names_and_namespaces()
+
+    spin = functools.partial(_spin, executor)
+    try:
+        feed = FeedWriter(observer, LatestSamples(observer, {}), display.stdin.fileno(), rate=30.0)
+        # its imports take 2-4 s here: it would have joined by now, and the feed's timer runs
+        assert not spin(8.0, joined), 'joined DDS before the first frame of the feed'
+        assert display.poll() is None, display.stderr.read().decode()[-2000:]
+        feed.start()
+        assert spin(20.0, lambda: joined() and observer.count_publishers(description) > 0), \
+            'not in the graph after the first frame'
+    finally:
+        display.terminate()
+        display.wait(timeout=10)
+        display.stdin.close()
+        executor.shutdown()
+        observer.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -204,13 +204,18 @@ def main(argv: list[str] | None = None) -> int:
         from .console import Waits
         waits = Waits(model)
 
-        def on_transition(transition) -> None:
+        def running() -> None:
+            """The root is Running: the run's time counts, the display joins."""
             nonlocal running_since
+            if running_since is None:
+                running_since = time.monotonic()
+                visualization.join()
+
+        def on_transition(transition) -> None:
             # when the root was seen Running, in the order the transitions came: a Safety seen after
             # it is a fault while running, not a failed start, however late the housekeeping looks
-            if running_since is None and transition.composite == root.name \
-                    and transition.state.startswith('Active.Run.Running'):
-                running_since = time.monotonic()
+            if transition.composite == root.name and transition.state.startswith('Active.Run.Running'):
+                running()
             outcome.saw_state(transition.composite, transition.state)
             console.on_transition(transition)
             waits.on_transition(transition)
@@ -259,8 +264,8 @@ def main(argv: list[str] | None = None) -> int:
                 console.show(line)
             console.refresh()
             state = coordinator.state
-            if running_since is None and state.startswith('Active.Run.Running'):
-                running_since = time.monotonic()
+            if state.startswith('Active.Run.Running'):
+                running()
             due = args.duration is not None and running_since is not None \
                 and time.monotonic() - running_since >= args.duration
             # a failure on the way to Running (a composite was in Safety before the root was seen
@@ -284,9 +289,10 @@ def main(argv: list[str] | None = None) -> int:
             if state.endswith('NotifyStopped'):
                 _await_final_states(executor, facts=facts, outcome=outcome, recorder=recorder,
                                     composites=composites)
+                visualization.join()  # a run that ended before Running is shown too
                 if recorder is not None and (missing := _await_first_drawing(executor, visualization, recorder)):
                     undrawn.append(f'the recording holds no {", ".join(missing)}: the visualization process did not '
-                                   f'draw the 3-D scene within {FIRST_DRAWING_TIMEOUT:g} s of its start')
+                                   f'draw the 3-D scene within {FIRST_DRAWING_TIMEOUT:g} s of joining')
                 break
             if stop_sent_at is not None and time.monotonic() - stop_sent_at > STOP_TIMEOUT:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
@@ -352,7 +358,7 @@ def _await_final_states(executor, *, facts, outcome, recorder, composites: dict[
 def _await_first_drawing(executor, visualization, recorder) -> list[str]:
     """A short run may end before the visualization process drew the scene once (its imports take
     seconds on a loaded machine): spin until the recording holds it, at most until
-    :data:`~.visualization.FIRST_DRAWING_TIMEOUT` after the process started (the feed keeps the
+    :data:`~.visualization.FIRST_DRAWING_TIMEOUT` after the process joined (the feed keeps the
     last samples, so it draws the final state). The scene's topics the recording still holds
     nothing of (any of them missing leaves ``itasc-plot`` without a 3-D scene)."""
     while not visualization.drawn(recorder):

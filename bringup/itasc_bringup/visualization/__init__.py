@@ -13,9 +13,12 @@ The visualization process runs at a lower CPU priority than the application
 (:data:`DISPLAY_NICENESS`): where every core is busy, the display waits, not the control loop.
 
 The visualization process is a new interpreter: on a loaded 2-core machine its imports take
-seconds, longer than a short run. A recording shows the run in 3-D from the file alone, so
-the bootstrap waits, before it closes a recording, until the scene was drawn once
-(:meth:`Visualization.drawn`), at most :data:`FIRST_DRAWING_TIMEOUT` after the process started.
+seconds. It starts with the bring-up and imports meanwhile, but joins DDS only once it is told to
+(:meth:`Visualization.join`: the bootstrap does when the root is Running, and at the latest when
+the run ends): a participant present during the bring-up slows it down (:mod:`.feed`). A recording
+shows the run in 3-D from the file alone, so the bootstrap waits, before it closes a recording,
+until the scene was drawn once (:meth:`Visualization.drawn`), at most :data:`FIRST_DRAWING_TIMEOUT`
+after the process joined.
 """
 
 from __future__ import annotations
@@ -29,8 +32,12 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import yaml
+
+if TYPE_CHECKING:
+    from .feed import FeedWriter
 
 __all__ = ['start_visualization', 'Visualization', 'GLOBAL_TOPICS', 'FIRST_DRAWING_TIMEOUT', 'DISPLAY_NICENESS']
 
@@ -50,14 +57,22 @@ DISPLAY_NICENESS = 10
 
 @dataclass
 class Visualization:
-    """The visualization of a run: ``end()`` ends it; ``drawn(recorder)`` says whether ``recorder``
-    holds the scene (``/tf_static``, ``/tf`` and the markers) or never will (no process, it died, or it is past
-    :data:`FIRST_DRAWING_TIMEOUT`)."""
+    """The visualization of a run: ``join()`` lets its process join DDS and draw, ``end()`` ends it;
+    ``drawn(recorder)`` says whether ``recorder`` holds the scene (``/tf_static``, ``/tf`` and the
+    markers) or never will (no process, it died, or it is past :data:`FIRST_DRAWING_TIMEOUT`)."""
 
     end: Callable[[], None]
     process: subprocess.Popen | None = None
     markers: str | None = None
-    started_at: float = 0.0
+    feed: FeedWriter | None = None
+    #: when it was told to join (``time.monotonic()``), None before
+    joined_at: float | None = None
+
+    def join(self) -> None:
+        """The application is Running (or its run ends): the process may join DDS and draw."""
+        if self.feed is not None and self.joined_at is None:
+            self.joined_at = time.monotonic()
+            self.feed.start()
 
     def missing(self, recorder) -> list[str]:
         """The topics of the scene (the markers, ``/tf``, ``/tf_static``) that ``recorder`` holds
@@ -69,7 +84,7 @@ class Visualization:
     def drawn(self, recorder) -> bool:
         if self.process is None or self.markers is None or self.process.poll() is not None:
             return True
-        if time.monotonic() - self.started_at > FIRST_DRAWING_TIMEOUT:
+        if self.joined_at is None or time.monotonic() - self.joined_at > FIRST_DRAWING_TIMEOUT:
             return True
         return not self.missing(recorder)
 
@@ -116,7 +131,6 @@ def start_visualization(app: str, *, model, node, composer, recorder=None, obser
     markers = markers_topic(f'/{model.name}')
     if recorder is not None:
         recorder.record(markers, 'visualization_msgs/msg/MarkerArray', qos=DATA_QOS)
-    started_at = time.monotonic()
     process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve()),
                                 '--feed'], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                preexec_fn=_as_display_process)
@@ -134,4 +148,4 @@ def start_visualization(app: str, *, model, node, composer, recorder=None, obser
                 process.wait()
         process.stdin.close()  # nothing is buffered in it: the feed writes to its descriptor
     atexit.register(end)
-    return Visualization(end=end, process=process, markers=markers, started_at=started_at)
+    return Visualization(end=end, process=process, markers=markers, feed=feed)

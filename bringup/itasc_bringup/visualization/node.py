@@ -6,8 +6,9 @@ for the interpreter with, the control tick (paper §6.2: the Timer's tick comput
 nothing else). Started by the bootstrap (``--feed``), it takes the newest samples of the data flow
 it draws from (the Driver's joint state, the Tasks' ``Rows/state``, ...) from the bootstrap's
 :class:`~.feed.FeedWriter` on its stdin: it adds no DDS reader to a topic the tick publishes,
-since every reader costs the tick a send (:mod:`.feed`). Run on its own it subscribes to those
-topics instead. It publishes
+since every reader costs the tick a send (:mod:`.feed`), and joins DDS when the first feed
+arrives, once the application is Running. Run on its own it subscribes to those topics instead.
+It publishes
 
 * ``<app>/<robot>/robot_description`` (``std_msgs/String``, transient local), per robot;
 * ``/tf_static`` once (fixed joints, object frames, fixed placements) and ``/tf`` at the display
@@ -48,7 +49,7 @@ from itasc_msgs.msg import CoordinatorState, Features, TaskState
 
 from ..model.schema import Application
 from .description import robot_description
-from .feed import FeedReader, display_topics
+from .feed import FeedReader, display_topics, wait_for_first_frame
 from .frames import WORLD, Edge, FrameTree, quaternion_xyzw
 from .markers import TaskView, scene_markers
 
@@ -224,10 +225,15 @@ def main(argv: list[str] | None = None) -> int:
     except ModelError as err:
         print(f'error: {err}', file=sys.stderr)
         return 2
-    configure_dds()
     # Python's own handlers, not rclpy's: rclpy's shut the context down under a running timer
     # callback, whose publish then fails with a traceback; a KeyboardInterrupt ends spin cleanly.
     signal.signal(signal.SIGTERM, signal.default_int_handler)
+    if args.feed:
+        try:
+            wait_for_first_frame(sys.stdin.fileno())  # the application is Running: join DDS (see .feed)
+        except KeyboardInterrupt:
+            return 0
+    configure_dds()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
