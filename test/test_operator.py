@@ -43,17 +43,21 @@ def raise_event(service: str, name: str) -> RaiseEvent.Response:
     return call_service(RaiseEvent, service, RaiseEvent.Request(name=name))
 
 
-def composites_of(app: str) -> list[str]:
+def composites_of(app: str) -> dict[str, bool]:
+    """The namespace of every composite of ``app``, and whether its model has composition steps."""
     from itasc_bringup.apps import load_composition
     from itasc_core.composition.model import walk
-    return [path for path, _ in walk(load_composition(app))]
+    return {path: bool(model.composition_steps) for path, model in walk(load_composition(app))}
 
 
-def assert_operator_services(namespaces: list[str], *, timeout: float = 30.0) -> None:
-    """Every composite lists its operator services with their types (``ros2 service list -t``)."""
-    expected = {f'{ns}/coordinator/{name}': [kind] for ns in namespaces for name, kind in (
+def assert_operator_services(composites: dict[str, bool], *, timeout: float = 30.0) -> None:
+    """Every composite lists its operator services with their types (``ros2 service list -t``),
+    ``~/compose`` only where its model has composition steps (a service elsewhere would refuse
+    every call, and each service is a DDS reader and writer every endpoint of its process pairs with)."""
+    expected = {f'{ns}/coordinator/{name}': [kind] for ns, steps in composites.items() for name, kind in (
         ('raise_event', 'itasc_msgs/srv/RaiseEvent'), ('recover', 'std_srvs/srv/Trigger'),
-        ('stop', 'std_srvs/srv/Trigger'))}
+        ('stop', 'std_srvs/srv/Trigger'), *([('compose', 'itasc_msgs/srv/Compose')] if steps else []))}
+    without = {f'{ns}/coordinator/compose' for ns, steps in composites.items() if not steps}
     with ros_node() as (node, executor):
         deadline = time.monotonic() + timeout
         while True:
@@ -63,6 +67,7 @@ def assert_operator_services(namespaces: list[str], *, timeout: float = 30.0) ->
                 break
             executor.spin_once(timeout_sec=0.1)
     assert not missing, f'not listed (or of another type): {missing}'
+    assert not without & set(listed), f'offered by a composite without composition steps: {without & set(listed)}'
 
 
 def assert_no_event_lost(run: dict[str, list]) -> None:

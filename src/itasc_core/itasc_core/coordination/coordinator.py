@@ -9,7 +9,8 @@ and between ticks by a timer at ``update_rate`` that runs only while there is so
 every composite's process 200 times a second for nothing. Priority events (``e_emergency``) are
 processed on arrival (§6.2). It publishes its fully
 qualified state on ``<composite namespace>/state`` on every change, and offers the operator
-services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``, ``~/compose``). A
+services of :mod:`.operator` (``~/raise_event``, ``~/recover``, ``~/stop``; ``~/compose`` when
+its model has composition steps). A
 parent's command of a composition step (``e_<c>_compose_<step>``) goes to the composite's
 Composer, whose answer (``e_<c>_composed`` / ``e_<c>_compose_failed``) goes back up.
 """

@@ -16,10 +16,10 @@ reconfiguration; §7.2 events): the operator services every composite's Coordina
 * ``stop`` (``std_srvs/srv/Trigger``) asks for the orderly stop of the whole hierarchy: the
   request (``e_stop_requested``) travels up from Coordinator to parent Coordinator to the root's
   event topic, where the bootstrap stops the application as it does on SIGINT.
-* ``compose`` (``itasc_msgs/srv/Compose``) runs a composition step of the composite's model
-  (``e_<c>_compose_<step>``, :mod:`..composition.steps`) and answers with its result once the
-  Composer gave it (``e_<c>_composed``: what changed; ``e_<c>_compose_failed``: why nothing did).
-  Refused for a step the model does not have, and unless the composite is Running.
+* ``compose`` (``itasc_msgs/srv/Compose``), offered by a composite whose model has composition
+  steps, runs one of them (``e_<c>_compose_<step>``, :mod:`..composition.steps`) and answers with
+  its result once the Composer gave it (``e_<c>_composed``: what changed; ``e_<c>_compose_failed``:
+  why nothing did). Refused for a step the model does not have, and unless the composite is Running.
 
 The Coordinator stays a pure event processor: the services only raise events and look at its FSM;
 everything they start travels as events.
@@ -78,7 +78,8 @@ class Operator:
         node.create_service(Trigger, '~/stop', self._stop)
         self._composition_steps = sorted(steps)
         self._composing: dict[str, list[Later]] = {}
-        create_deferred_service(node, Compose, '~/compose', self._compose)
+        if self._composition_steps:  # a service is a reader and a writer that every endpoint of the process pairs with
+            create_deferred_service(node, Compose, '~/compose', self._compose)
 
     # -- the services ---------------------------------------------------------------------------------
 
