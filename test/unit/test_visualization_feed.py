@@ -79,6 +79,13 @@ def test_the_newest_samples_arrive_once_each_without_a_subscription(feed):
     reader = FeedReader(read_fd, TOPICS)
     writer.send()
     assert reader.read() == [] and writer.frames == 0  # nothing written yet
+    ports[ROWS].last = TaskState(task='T', error_norm=0.9)
+    writer.send()
+    assert reader.read() == [] and writer.frames == 0  # not started: the display waits for Running
+    writer.start()  # the first frame goes at once
+    assert writer.frames == 1 and [topic for topic, _ in reader.read()] == [ROWS]
+    writer.send()
+    assert reader.read() == [] and writer.frames == 1  # nothing new
     for i in range(3):  # ticks between two display cycles: only the newest goes
         ports[JOINTS].last = _joints(i)
     ports[ROWS].last = TaskState(task='T', error_norm=0.5, active=True)
@@ -98,6 +105,7 @@ def test_a_full_pipe_loses_frames_never_blocks_nor_corrupts_them(feed):
     node, ports, (read_fd, write_fd) = feed
     writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
     reader = FeedReader(read_fd, TOPICS)
+    writer.start()
     i = 0
     while writer.dropped < 3:  # nobody reads: the pipe fills up, frames are dropped
         i += 1
@@ -119,6 +127,7 @@ def test_a_gone_reader_ends_the_feed_and_a_gone_writer_is_seen(feed):
     node, ports, (read_fd, write_fd) = feed
     reader = FeedReader(read_fd, TOPICS)
     writer = FeedWriter(node, LatestSamples(node, TOPICS), write_fd, rate=30.0)
+    writer.start()
     os.close(read_fd)
     ports[JOINTS].last = _joints(1)
     writer.send()  # EPIPE: the visualization process is gone
