@@ -28,10 +28,18 @@ def state_sequences(stdout: str) -> dict[str, list[str]]:
     return sequences
 
 
+#: The rate of the runs whose computation is compared between deployments [Hz]. At pattern_demo's
+#: own 1 kHz, its four processes per composite do not keep up on a loaded 2-core machine (700-800 Hz
+#: with hundreds of ticks dropped; a Task then ticks on a stale setpoint now and then): the
+#: per-composite median tracking error was 0.04-0.58 there, above 0.15 in 3 of 6 runs, against 0.05
+#: at 250 Hz in every run.
+COMPARED_RATE = '250'
+
+
 @pytest.fixture(scope='module')
 def single(tmp_path_factory):
     bag = tmp_path_factory.mktemp('single') / 'run.mcap'
-    result = run('pattern_demo', '--duration', '2', '--record', str(bag))
+    result = run('pattern_demo', '--duration', '2', '--rate', COMPARED_RATE, '--record', str(bag))
     result.bag = bag
     return result
 
@@ -58,7 +66,8 @@ def test_pattern_demo_runs_and_stops_in_order_with_exit_0(single):
 
 def test_same_behaviour_with_one_process_per_composite(single, tmp_path):
     bag = tmp_path / 'per_composite.mcap'
-    per_composite = run('pattern_demo', '--duration', '2', '--deploy', 'per-composite', '--record', str(bag))
+    per_composite = run('pattern_demo', '--duration', '2', '--rate', COMPARED_RATE, '--deploy', 'per-composite',
+                        '--record', str(bag))
     assert per_composite.returncode == 0, per_composite.stderr
     assert state_sequences(per_composite.stdout) == state_sequences(single.stdout)
     # the same computation: the plant tracks the sine as closely in both deployments. The median
@@ -66,7 +75,7 @@ def test_same_behaviour_with_one_process_per_composite(single, tmp_path):
     # sine moves on) weighs on the RMS of a 2 s run (0.24 once in CI), not on what a tick computes.
     errors = {'single': tracking_errors(single.bag), 'per-composite': tracking_errors(bag)}
     typical = {mode: float(np.median(np.abs(e[len(e) // 4:]))) for mode, e in errors.items()}
-    assert all(len(e) > 300 for e in errors.values()), {m: len(e) for m, e in errors.items()}  # 2 s at up to 1 kHz
+    assert all(len(e) > 300 for e in errors.values()), {m: len(e) for m, e in errors.items()}  # 2 s at 250 Hz
     assert all(r < 0.15 for r in typical.values()), typical  # a sine of amplitude 1 tracked to within 15 %
 
 
