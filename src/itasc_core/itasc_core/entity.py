@@ -75,10 +75,10 @@ class Entity(Node):
     def __init__(self, name: str, *, composite: CompositeContext) -> None:
         PACE.gap()
         writers = ProcessWriters.of(get_default_context())
-        shared_rosout = writers is not None and writers.logs(composite.namespace)
-        super().__init__(name, namespace=composite.namespace, enable_rosout=not shared_rosout, **serving_nothing())
+        logs_there = writers if writers is not None and writers.logs(composite.namespace) else None
+        super().__init__(name, namespace=composite.namespace, enable_rosout=logs_there is None, **serving_nothing())
         #: held while the node lives: its log lines go out on the process's ``/rosout`` writer
-        self._rosout = writers.rosout(self.get_logger().name) if writers and shared_rosout else None
+        self._rosout = None if logs_there is None else logs_there.rosout(self.get_logger().name)
         self.composite = composite
         self.entity_name = name
         self._raisers: list[EventRaiser] = []
@@ -89,8 +89,7 @@ class Entity(Node):
 
     def create_publisher(self, msg_type: Any, topic: str, *args, **kwargs) -> Publisher:
         """rclpy's, but ``/parameter_events`` (rclpy's Node makes one for itself) is the process's."""
-        writers = ProcessWriters.of(self.context)
-        if topic == PARAMETER_EVENTS and writers is not None:
+        if topic == PARAMETER_EVENTS and (writers := ProcessWriters.of(self.context)) is not None:
             return writers.parameter_events
         return self._create_publisher(msg_type, topic, *args, **kwargs)
 
