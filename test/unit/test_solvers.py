@@ -234,6 +234,37 @@ def test_qp_detects_a_singularity_within_its_check_period(panda):
         assert measured[i][0] == pytest.approx(measured[i][1], rel=1e-9), (i, measured[i])
 
 
+def test_qp_spreads_the_singularity_checks_of_its_tasks_over_the_period(monkeypatch):
+    """Four equality tasks, period 4: each step computes one SVD (not four every fourth step,
+    which made those steps a third longer), each task is checked once a period, and the one that
+    turns singular is reported within the period, and no longer once it left."""
+    from itasc_core.itasc.solver import qp
+    svds: list[int] = []
+    gesvd = qp._gesvd
+
+    def counted(*args, **kwargs):
+        svds[-1] += 1
+        return gesvd(*args, **kwargs)
+    monkeypatch.setattr(qp, '_gesvd', counted)
+    period = 4
+    solver = QpSolver(singularity_check_period=period)
+    Q = np.linalg.qr(np.random.default_rng(0).normal(size=(7, 7)))[0]
+    healthy = {'a': Q[0:2], 'b': Q[2:4], 'c': Q[4:6], 'd': Q[[6, 0]]}
+    nearly_parallel = np.array([Q[6], Q[6] + 1e-7 * Q[0]])
+    steps = 16
+    singular = []
+    for step in range(steps):
+        svds.append(0)
+        tasks = dict(healthy, d=nearly_parallel) if 4 <= step < 10 else healthy
+        rows = [ConstraintRows.equality(name, J, np.zeros(2)) for name, J in tasks.items()]
+        singular.append(_solve(solver, rows).singular)
+    assert svds == [1] * steps, svds
+    became = singular.index(True)
+    left = singular.index(False, became)
+    assert 4 <= became < 4 + period and 10 <= left < 10 + period, singular
+    assert all(singular[became:10]) and not any(singular[left:]), singular
+
+
 @pytest.mark.parametrize('solver', SOLVERS, ids=IDS)
 def test_infeasible_inequalities_and_bad_input_never_nan(solver):
     e0 = np.eye(3)[:1]

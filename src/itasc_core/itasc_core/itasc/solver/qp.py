@@ -22,11 +22,14 @@ higher levels leave free. Below ``singularity_epsilon`` the step reports ``singu
 regularisation and the joint limits keep qdot bounded there, so nothing else changes. Per task,
 not per level: a low-weight task sharing a level (a posture regularising a frame task) is not a
 singularity. The SVDs cost about a third of a step, and a singularity builds up over many ticks,
-so they run every ``singularity_check_period``-th step; the steps between report the last value.
+so each task's runs every ``singularity_check_period``-th step, the tasks' checks spread over the
+period (all of them in one step made that step a third longer: the tail of a control loop's ticks);
+a step reports the smallest of its equality tasks' last values.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from time import perf_counter
 
@@ -99,7 +102,8 @@ class QpSolver(Solver):
         self.singularity_epsilon = singularity_epsilon
         self.singularity_check_period = max(1, int(singularity_check_period))
         self._step = 0
-        self._min_singular_value = np.inf
+        #: task -> its smallest singular value at its last check
+        self._singular_values: dict[str, float] = {}
         defaults = {'osqp': {'eps_abs': 1e-7, 'eps_rel': 1e-7, 'verbose': False,
                              'raise_error': False},
                     'proxqp': {'eps_abs': 1e-9, 'eps_rel': 0.0}}
@@ -122,14 +126,18 @@ class QpSolver(Solver):
         locked = np.zeros((0, n))  # Z^T: orthonormal rows spanning higher-level equality rows
         kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # higher-level inequalities
         levels = group_levels(rows)
-        check = self._step % self.singularity_check_period == 0
+        period, step = self.singularity_check_period, self._step
         self._step += 1
-        free_parts: list[np.ndarray] = []  # each equality task's Jacobian in its free directions
+        singular_values = self._singular_values
+        n_eq = sum(not r.inequality for r in rows)
+        i_eq = 0  # the equality task's place in this step: its check's phase in the period
         for k, level in enumerate(levels):
             eq = [r for r in level if not r.inequality]
             ineq = [r for r in level if r.inequality]
-            if check:
-                free_parts += [_free_part(r, locked) for r in eq]
+            for r in eq:
+                if (step - i_eq * period // n_eq) % period == 0:
+                    singular_values[r.task] = _smallest_singular_value(_free_part(r, locked))
+                i_eq += 1
             x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
             if x is None:
                 result.infeasible = True
@@ -155,9 +163,11 @@ class QpSolver(Solver):
         # a bound shaped the solution (a zero bound: the joint rests exactly at its limit)
         result.saturated = bool(((ub - qdot <= 1e-9) & (np.abs(ub) > 1e-9)).any()
                                 or ((qdot - lb <= 1e-9) & (np.abs(lb) > 1e-9)).any())
-        if check:
-            self._min_singular_value = _smallest_singular_value(free_parts)
-        result.min_singular_value = self._min_singular_value
+        if len(singular_values) > n_eq:  # tasks switched off since: their values no longer count
+            self._singular_values = singular_values = {
+                r.task: singular_values[r.task] for r in rows if not r.inequality and r.task in singular_values}
+        result.min_singular_value = min((singular_values.get(r.task, math.inf) for r in rows if not r.inequality),
+                                        default=math.inf)
         result.singular = bool(result.min_singular_value < self.singularity_epsilon)
         result.qdot = qdot
         result.set_status()
@@ -272,17 +282,14 @@ def _free_part(task: ConstraintRows, locked: np.ndarray) -> np.ndarray:
     return A - (A @ locked.T) @ locked if locked.shape[0] else A
 
 
-def _smallest_singular_value(parts: list[np.ndarray], *, truncation: float = 1e-9) -> float:
-    """The smallest non-zero singular value over ``parts`` (inf if none; LAPACK's own SVD of
-    each part, without the singular vectors: half of numpy's for these few-row parts). Values below
-    ``truncation`` relative to a part's largest are directions higher levels fixed or no row
-    reaches, not singularities (as in the WDLS Solver)."""
-    smallest = np.inf
-    for part in parts:
-        if not np.isfinite(part).all():
-            return np.inf  # non-finite rows: the level reports infeasible
-        s = _gesvd(part, compute_uv=0, full_matrices=0)[1]
-        if s.size:
-            s = s[s > truncation * max(1.0, s[0])]
-            smallest = min(smallest, s.min(initial=np.inf))
-    return float(smallest)
+def _smallest_singular_value(part: np.ndarray, *, truncation: float = 1e-9) -> float:
+    """The smallest non-zero singular value of ``part`` (inf if none; LAPACK's own SVD, without the
+    singular vectors: half of numpy's for these few-row parts). Values below ``truncation`` relative
+    to the largest are directions higher levels fixed or no row reaches, not singularities (as in
+    the WDLS Solver)."""
+    if not math.isfinite(part.sum()):
+        return math.inf  # non-finite rows: the level reports infeasible
+    # part.T is in Fortran order (no copy for LAPACK) and has the same singular values
+    s = _gesvd(part.T, compute_uv=0, full_matrices=0)[1].tolist()
+    floor = truncation * max(1.0, s[0]) if s else 0.0
+    return min((v for v in s if v > floor), default=math.inf)
