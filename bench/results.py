@@ -25,14 +25,16 @@ def _row(what: str, r: dict) -> str:
             f"{r.get('dropped_ticks', '-')} | {_us(r['tick_p50_us'])} | {_us(r['tick_p99_us'])} | "
             f"{_us(r.get('qp_p50_us'))} | {_us(r.get('solver_p50_us'))} | {_ratio(r.get('tick_over_solver'))} | "
             f"{_us(r.get('solver_paced_p50_us'))} | {_ratio(r.get('tick_over_solver_paced'))} | "
+            f"{_us(r.get('solver_paced_p99_us'))} | "
             f"{_us(r.get('handwritten_p50_us'))} | {_ratio(r.get('tick_over_handwritten'))} | "
+            f"{_us(r.get('handwritten_p99_us'))} | "
             f"{_s(r.get('bring_up_s'))} | {_s(r.get('start_to_running_s'))} | {r['load_before']:.1f} |")
 
 
 HEADER = ('| run | achieved Hz | Solver Hz | ticks dropped | tick p50 µs | tick p99 µs | QP p50 µs (in the app) | '
           'solver step p50 µs | tick / solver step | solver step paced p50 µs | tick / paced step | '
-          'hand-written p50 µs | tick / hand-written | up after s (rclpy.init) | up after s (process start) | '
-          'load |\n|' + '---|' * 16)
+          'solver step paced p99 µs | hand-written p50 µs | tick / hand-written | hand-written p99 µs | '
+          'up after s (rclpy.init) | up after s (process start) | load |\n|' + '---|' * 18)
 
 
 def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Path) -> None:

@@ -41,6 +41,7 @@ def test_two_robots_one_of_them_behind_a_ros2_control_driver(tmp_path):
     assert figures['ticks'] > 200 and figures['achieved_hz'] > 100, figures
     assert figures['solver_hz'] > 100 and figures['qp_p50_us'] > 0, figures  # the stand-in drove the other arm
     assert figures['solver_p50_us'] > 0 and figures['tick_p50_us'] > 0, figures
+    assert figures['solver_paced_p99_us'] >= figures['solver_paced_p50_us'] > 0, figures
     assert figures['handwritten_hz'] > 100 and figures['handwritten_p50_us'] > 0, figures
 
 
