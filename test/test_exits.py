@@ -95,3 +95,22 @@ def test_a_recording_whose_writer_was_killed_too_is_made_readable_by_itasc_recov
     assert len(log_times) > 1000
     lost = killed_at - max(log_times) * 1e-9
     assert lost < 1.5, f'the last {lost:.2f} s before the kill are lost'
+
+
+def test_a_second_instance_in_the_same_domain_stops_before_anything_starts():
+    """The same application started again in the same ROS domain (a second terminal) exits 2 at once,
+    naming the running one's process, and the running one goes on untouched to its orderly end
+    (``app`` is pattern_demo's root: the namespace both would share).
+    Before, the second one's ``e_app_configure`` reached the running Coordinators: the running
+    root configured again while it ran, and each instance's Composers acted on the other's events."""
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--duration', '8']) as first:
+        first.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        running = len(first.stdout)  # the lines up to the Running one
+        with Spawned([*BOOTSTRAP, 'pattern_demo', '--duration', '2']) as second:
+            assert second.finish(timeout=60) == 2, second.output()
+        assert f'app already runs in ROS domain {os.environ["ROS_DOMAIN_ID"]} on this machine ' \
+               f'(process {first.process.pid})' in second.err, second.output()
+        assert first.finish(timeout=60) == 0, first.output()
+        after_running = ''.join(first.stdout[running:])
+    assert 'Configur' not in after_running and 'Safety' not in after_running, after_running
+    assert 'stopped (duration) - exit 0' in after_running, after_running

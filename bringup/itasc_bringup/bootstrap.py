@@ -68,9 +68,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f'applications: {", ".join(apps)}\n\n{EXAMPLES}\n'
                'exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time;\n'
-               '  2 wrong model (nothing was started) or a failure before Running (what was started\n'
-               '  is stopped in order); 3 the run ended in Safety; 4 it went through Safety, was\n'
-               '  recovered (~/recover) and stopped in order from Running\n\n'
+               '  2 wrong model or the application already running in this ROS domain here (nothing\n'
+               '  was started), or a failure before Running (what was started is stopped in order);\n'
+               '  3 the run ended in Safety; 4 it went through Safety, was recovered (~/recover)\n'
+               '  and stopped in order from Running\n\n'
                'shell completion: eval "$(register-python-argcomplete bootstrap)"')
     app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     app.completer = _app_completer(apps)  # type: ignore[attr-defined]  # argcomplete reads it
@@ -137,6 +138,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         configure_dds()
     except DdsSettingsError as err:  # a wrong ITASC_DDS_PEERS/ITASC_DDS_INTERFACES: nothing started
+        print(f'error: {err}', file=sys.stderr)
+        return 2
+    from .instance import AlreadyRunning, InstanceLock
+    instance = InstanceLock(model.name)
+    try:  # before this process joins DDS: its events would reach the running instance
+        instance.acquire()
+    except AlreadyRunning as err:
         print(f'error: {err}', file=sys.stderr)
         return 2
     import rclpy
@@ -334,6 +342,7 @@ def main(argv: list[str] | None = None) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
         trace.close()
+        instance.release()
 
 
 def _await_final_states(executor, *, facts, outcome, recorder, composites: dict[str, str]) -> None:
