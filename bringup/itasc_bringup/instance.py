@@ -22,6 +22,8 @@ import tempfile
 import weakref
 from pathlib import Path
 
+from itasc_core.communication.dds import domain_id
+
 __all__ = ['AlreadyRunning', 'InstanceLock']
 
 
@@ -30,12 +32,12 @@ class AlreadyRunning(RuntimeError):
 
 
 class InstanceLock:
-    """The lock of application ``app`` in ROS domain ``domain`` (default: ``ROS_DOMAIN_ID``, 0),
+    """The lock of application ``app`` in ROS domain ``domain`` (default: this process's),
     held from :meth:`acquire` until :meth:`release` or the process's end."""
 
     def __init__(self, app: str, *, domain: int | None = None, directory: str | os.PathLike | None = None) -> None:
         self.app = app
-        self.domain = int(os.environ.get('ROS_DOMAIN_ID') or 0) if domain is None else domain
+        self.domain = domain_id() if domain is None else domain
         self.path = Path(directory or tempfile.gettempdir()) / f'itasc-ros-domain-{self.domain}-{app}.lock'
         self._release: weakref.finalize | None = None
 

@@ -236,13 +236,16 @@ def test_composite_processes_end_when_the_bootstrap_is_killed():
         assert _host_processes() == []
 
 
-def test_wrong_dds_settings_exit_2_without_traceback():
-    env = {**os.environ, 'ITASC_DDS_PEERS': 'not-an-address'}
+@pytest.mark.parametrize('variable, value', [('ITASC_DDS_PEERS', 'not-an-address'), ('ROS_DOMAIN_ID', 'abc'),
+                                             ('ROS_DOMAIN_ID', '233')])
+def test_wrong_dds_settings_exit_2_without_traceback(variable, value):
+    """Before, a ROS_DOMAIN_ID that is not a domain id ended in rcl's RCLError traceback, exit 1."""
+    env = {**os.environ, variable: value}
     env.pop('FASTRTPS_DEFAULT_PROFILES_FILE', None)  # our profile, generated from the peers
     result = subprocess.run([*BOOTSTRAP, 'pattern_demo', '--duration', '1'], capture_output=True, text=True,
                             timeout=60, env=env)
     assert result.returncode == 2, result.stdout[-2000:] + result.stderr[-2000:]
-    assert 'ITASC_DDS_PEERS' in result.stderr and 'Traceback' not in result.stderr
+    assert f'{variable}={value!r}' in result.stderr and 'Traceback' not in result.stderr, result.stderr[-2000:]
 
 
 def test_a_stuck_bootstrap_tells_where_it_is_stuck_and_runs_on():

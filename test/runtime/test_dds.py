@@ -74,3 +74,15 @@ def test_two_test_processes_at_once_never_share_a_domain():
     other = subprocess.run([sys.executable, '-c', probe, str(suite), str(os.getpid())], capture_output=True,
                            text=True, env=env, timeout=60, check=True)
     assert int(other.stdout.split()[-1]) != int(os.environ['ROS_DOMAIN_ID'])
+
+
+@pytest.mark.parametrize('value, expected', [('', 0), (' 7', 7), ('232', 232), ('abc', None), ('-1', None),
+                                             ('233', None), ('1.5', None)])
+def test_the_ros_domain_id_is_read_as_rcl_reads_it_or_refused_by_name(monkeypatch, value, expected):
+    from itasc_core.communication.dds import DdsSettingsError, domain_id
+    monkeypatch.setenv('ROS_DOMAIN_ID', value)
+    if expected is None:
+        with pytest.raises(DdsSettingsError, match=rf"ROS_DOMAIN_ID='{value}' is not a ROS domain id"):
+            domain_id()
+    else:
+        assert domain_id() == expected

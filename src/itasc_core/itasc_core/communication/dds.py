@@ -59,18 +59,34 @@ import re
 import tempfile
 from pathlib import Path
 
-__all__ = ['configure_dds', 'peers_profile', 'profile_file', 'DdsSettingsError', 'PROFILE', 'LOCALHOST_PROFILE',
-           'PEERS_TEMPLATE', 'PEERS_RANGE']
+__all__ = ['configure_dds', 'domain_id', 'peers_profile', 'profile_file', 'DdsSettingsError', 'PROFILE',
+           'LOCALHOST_PROFILE', 'PEERS_TEMPLATE', 'PEERS_RANGE', 'MAX_DOMAIN_ID']
 
 PROFILE = Path(__file__).with_name('fastdds.xml')
 LOCALHOST_PROFILE = Path(__file__).with_name('fastdds_localhost.xml')
 PEERS_TEMPLATE = Path(__file__).with_name('fastdds_peers.xml.in')
 #: Participant ports per peer address that announcements go to (Fast DDS's default is 4).
 PEERS_RANGE = 32
+#: The largest ROS domain id whose UDP ports exist (7400 + 250 x domain + the participant's).
+MAX_DOMAIN_ID = 232
 
 
 class DdsSettingsError(ValueError):
-    """An ``ITASC_DDS_*`` variable that is not a list of IPv4 addresses."""
+    """An ``ITASC_DDS_*`` variable that is not a list of IPv4 addresses, or a ``ROS_DOMAIN_ID``
+    that is not a domain id."""
+
+
+def domain_id() -> int:
+    """This process's ROS domain id (``ROS_DOMAIN_ID``, 0 when unset or empty, as rcl reads it);
+    :class:`DdsSettingsError` for anything but an integer 0..:data:`MAX_DOMAIN_ID` (rcl would
+    fail later, in ``rclpy.init``, with a traceback)."""
+    text = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if not text:
+        return 0
+    if not text.isdigit() or int(text) > MAX_DOMAIN_ID:
+        raise DdsSettingsError(f'ROS_DOMAIN_ID={text!r} is not a ROS domain id: an integer 0..{MAX_DOMAIN_ID} '
+                               '(0..101 keeps clear of Linux\'s ephemeral ports)')
+    return int(text)
 
 
 def _addresses(variable: str) -> list[str]:
@@ -113,7 +129,8 @@ def configure_dds() -> None:
     """Select our Fast DDS profile in this process's environment (inherited by its children).
 
     Raises :class:`DdsSettingsError` for an ``ITASC_DDS_PEERS``/``ITASC_DDS_INTERFACES`` that is
-    not a list of IPv4 addresses."""
+    not a list of IPv4 addresses, or a ``ROS_DOMAIN_ID`` that is not a domain id."""
+    domain_id()
     if os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
         return
     peers = _addresses('ITASC_DDS_PEERS')
