@@ -68,10 +68,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f'applications: {", ".join(apps)}\n\n{EXAMPLES}\n'
                'exit codes: 0 orderly stop from Running; 1 the hierarchy did not stop in time;\n'
-               '  2 wrong model or the application already running in this ROS domain here (nothing\n'
-               '  was started), or a failure before Running (what was started is stopped in order);\n'
-               '  3 the run ended in Safety; 4 it went through Safety, was recovered (~/recover)\n'
-               '  and stopped in order from Running\n\n'
+               '  2 wrong model or DDS setting, or the application already running in this ROS domain\n'
+               '  here (nothing was started), or a failure before Running (what was started is\n'
+               '  stopped in order); 3 the run ended in Safety; 4 it went through Safety, was\n'
+               '  recovered (~/recover) and stopped in order from Running\n\n'
                'shell completion: eval "$(register-python-argcomplete bootstrap)"')
     app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     app.completer = _app_completer(apps)  # type: ignore[attr-defined]  # argcomplete reads it
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     from itasc_core.communication.dds import DdsSettingsError, configure_dds
     try:
         configure_dds()
-    except DdsSettingsError as err:  # a wrong ITASC_DDS_PEERS/ITASC_DDS_INTERFACES: nothing started
+    except DdsSettingsError as err:  # a wrong ROS_DOMAIN_ID or ITASC_DDS_PEERS/INTERFACES: nothing started
         print(f'error: {err}', file=sys.stderr)
         return 2
     from .instance import AlreadyRunning, InstanceLock

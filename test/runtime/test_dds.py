@@ -77,7 +77,7 @@ def test_two_test_processes_at_once_never_share_a_domain():
 
 
 @pytest.mark.parametrize('value, expected', [('', 0), (' 7', 7), ('232', 232), ('abc', None), ('-1', None),
-                                             ('233', None), ('1.5', None)])
+                                             ('233', None), ('1.5', None), ('\u00b2', None)])
 def test_the_ros_domain_id_is_read_as_rcl_reads_it_or_refused_by_name(monkeypatch, value, expected):
     from itasc_core.communication.dds import DdsSettingsError, domain_id
     monkeypatch.setenv('ROS_DOMAIN_ID', value)

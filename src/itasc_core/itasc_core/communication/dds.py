@@ -83,7 +83,7 @@ def domain_id() -> int:
     text = os.environ.get('ROS_DOMAIN_ID', '').strip()
     if not text:
         return 0
-    if not text.isdigit() or int(text) > MAX_DOMAIN_ID:
+    if not re.fullmatch(r'[0-9]+', text) or int(text) > MAX_DOMAIN_ID:
         raise DdsSettingsError(f'ROS_DOMAIN_ID={text!r} is not a ROS domain id: an integer 0..{MAX_DOMAIN_ID} '
                                '(0..101 keeps clear of Linux\'s ephemeral ports)')
     return int(text)
