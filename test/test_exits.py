@@ -101,8 +101,9 @@ def test_a_second_instance_in_the_same_domain_stops_before_anything_starts():
     """The same application started again in the same ROS domain (a second terminal) exits 2 at once,
     naming the running one's process, and the running one goes on untouched to its orderly end
     (``app`` is pattern_demo's root: the namespace both would share).
-    Before, the second one's ``e_app_configure`` reached the running Coordinators: the running
-    root configured again while it ran, and each instance's Composers acted on the other's events."""
+    Before, the second one ran, and the two took each other's events: the running one's
+    Coordinators logged 65 "lost events" (the other's sequence numbers) and its program switched
+    back from precise to tracking on the other's Monitor event."""
     with Spawned([*BOOTSTRAP, 'pattern_demo', '--duration', '8']) as first:
         first.wait_for_line('[state] app: Active.Run.Running', timeout=120)
         running = len(first.stdout)  # the lines up to the Running one

@@ -1,9 +1,9 @@
 """One running instance of an application per machine and ROS domain (the bootstrap's start-up
 check; paper §6.1: the root Coordinator owns the application's events).
 
-Two instances of one application in one ROS domain share every topic: the second one's
-``e_<app>_configure`` reaches the first one's Coordinators, which configure again while they run a
-robot, and each one's Composers act on the other's events. ROS cannot tell them apart by name,
+Two instances of one application in one ROS domain share every topic: each one's Coordinators
+take the other's events (``pattern_demo`` started twice: the running one's program switched state
+on the other's Monitor event), its ``e_<app>_configure`` included. ROS cannot tell them apart by name,
 and DDS discovery takes 0.2-0.5 s here, too long to wait for at every start. So the bootstrap
 holds a lock named after the ROS domain and the application (a POSIX record lock on a file in the
 temporary directory) from before it joins DDS to its exit. The kernel releases it however the
