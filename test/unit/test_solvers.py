@@ -265,6 +265,31 @@ def test_qp_spreads_the_singularity_checks_of_its_tasks_over_the_period(monkeypa
     assert all(singular[became:10]) and not any(singular[left:]), singular
 
 
+@pytest.mark.parametrize('lower, qps', [(-np.inf, 1), (-0.5, 1), (0.2, 2)])
+def test_a_top_level_of_inequalities_met_at_rest_is_not_solved(monkeypatch, lower, qps):
+    """qdot_0 + qdot_1 in [lower, 1] above a pull towards (1, 1): while the rest point meets the
+    row, the step solves one QP (the pull's), not two, and the answer is the cascade's; a row the
+    rest point violates (lower 0.2 at qdot = 0) is solved as before."""
+    solver = QpSolver()
+    calls = []
+    daqp = solver._daqp
+
+    def counted(*args):
+        calls.append(1)
+        return daqp(*args)
+    monkeypatch.setattr(solver, '_daqp', counted)
+    rows = [ConstraintRows.bounds('sum', np.array([[1.0, 1.0]]), [lower], [1.0]),
+            ConstraintRows.equality('pull', np.eye(2), [1.0, 1.0], priority=1)]
+    result = _solve(solver, rows, n=2)
+    np.testing.assert_allclose(result.qdot, [0.5, 0.5], atol=1e-5)
+    assert result.status == 'ok' and len(calls) == qps
+    calls.clear()  # joint 1 beyond its limit: the rest point is (0, 0.2), the velocity back
+    result = solver.solve(rows, q=np.array([0.0, -1.0]), lower=np.array([-1.0, -0.98]),
+                          upper=np.ones(2), velocity_limit=np.ones(2), dt=0.05)
+    np.testing.assert_allclose(result.qdot, [0.5, 0.5], atol=1e-5)
+    assert len(calls) == 1  # (0, 0.2) meets every row, lower 0.2 too
+
+
 @pytest.mark.parametrize('solver', SOLVERS, ids=IDS)
 def test_infeasible_inequalities_and_bad_input_never_nan(solver):
     e0 = np.eye(3)[:1]

@@ -16,6 +16,11 @@ rows never reach the backend. With all tasks at one priority this is exactly pin
 config_limit_gain``). If a level fails the result of the last solved level is returned with
 status ``infeasible``; an inequality row left violated also reports ``infeasible``.
 
+A first level of inequality rows only (obstacle distances, limits: the usual top of a cascade)
+that the rest point (qdot = 0, or the nearest velocity within the bounds) already meets has that
+rest point as its exact optimum (zero slack, the least regularisation term the bounds allow), so
+its QP is not solved: while the robot is clear of its constraints a step solves one QP less.
+
 Singularity is measured per equality task: the smallest non-zero singular value of the task's
 Jacobian (rows scaled by sqrt of their weight relative to the task's largest), in the directions
 higher levels leave free. Below ``singularity_epsilon`` the step reports ``singular``; the
@@ -138,7 +143,10 @@ class QpSolver(Solver):
                 if (step - i_eq * period // n_eq) % period == 0:
                     singular_values[r.task] = _smallest_singular_value(_free_part(r, locked))
                 i_eq += 1
-            x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
+            if k == 0 and not eq and _satisfied(ineq, qdot):
+                x = qdot  # the rest point meets every row: it is this level's optimum, no QP
+            else:
+                x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
             if x is None:
                 result.infeasible = True
                 result.violated += [r.task for r in level]
@@ -271,6 +279,15 @@ class QpSolver(Solver):
         except Exception:  # noqa: BLE001 - a backend failing on a degenerate level is an infeasible level
             return None
         return None if x is None or not np.isfinite(x).all() else x[:n]
+
+
+def _satisfied(rows: list[ConstraintRows], qdot: np.ndarray) -> bool:
+    """Whether ``qdot`` meets every inequality row of ``rows``."""
+    for r in rows:
+        y = r.J @ qdot
+        if not ((r.lower <= y).all() and (y <= r.upper).all()):
+            return False
+    return True
 
 
 def _free_part(task: ConstraintRows, locked: np.ndarray) -> np.ndarray:
