@@ -160,6 +160,8 @@ class EventListener:
 
     def drain(self) -> list[Event]:
         """Take every buffered event, oldest first (paper §7.2: empty the buffer on each read)."""
+        if not self._buffer:
+            return []  # the usual case, read every tick
         events = list(self._buffer)
         self._buffer.clear()
         return events

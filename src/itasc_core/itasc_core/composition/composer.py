@@ -217,7 +217,10 @@ class Composer(Entity):
         one tick is acted on in the next: a configuration switch of the Running sub-FSM reaches the
         Task's Configurator between the two (issue #9: a reaction in two ticks, not a Coordinator
         update period per composite)."""
-        hub = EventHub.of(self.context)
+        self._coordinate(EventHub.of(self.context))
+
+    def _coordinate(self, hub: EventHub | None) -> None:
+        """:meth:`coordinate`, with the process's hub (the children here share it)."""
         if hub is not None:
             hub.flush()
         if self.coordinator is not None and self.coordinator.holds_events:
@@ -226,7 +229,7 @@ class Composer(Entity):
                 hub.flush()
         for child in list(self.children.values()):
             if child is not None:
-                child.coordinate()
+                child._coordinate(hub)
 
     # -- DeployEntities ---------------------------------------------------------------------------------
 

@@ -26,6 +26,7 @@ is reached; Monitors watch it to tell the Coordinator that a motion is over).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -129,7 +130,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
         value, velocity = self._output_setpoint(value, velocity, selection=selection, rotation=features.rotation)
         names = selection.names
         value, velocity = np.asarray(value, dtype=float), np.asarray(velocity, dtype=float)
-        if not np.isfinite(value).all() or (self._subscription is not None and value.shape != (len(names),)):
+        if (not math.isfinite(value.sum()) and not np.isfinite(value).all()) or (self._subscription is not None and value.shape != (len(names),)):
             self.raise_event(SAFETY_EVENT, priority=True,
                              detail=f'{self.source}: setpoint {value.tolist()} is not {len(names)} finite values')
             return

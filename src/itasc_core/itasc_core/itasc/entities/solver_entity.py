@@ -144,7 +144,7 @@ class SolverEntity(FunctionalEntity):
             rows = self._rows(t)
             result = self.solver.solve(rows, q=q, lower=self.lower, upper=self.upper,
                                        velocity_limit=self.velocity_limit, dt=self._dt)
-            if not np.isfinite(result.qdot).all():
+            if not math.isfinite(result.qdot.sum()) and not np.isfinite(result.qdot).all():  # one sum, usually
                 raise NonFinite('the solver returned non-finite joint velocities')
             if result.infeasible:
                 self._report(result, t)

@@ -168,9 +168,7 @@ class QpSolver(Solver):
                 if violation.max(initial=0.0) > self.slack_tolerance and r.task not in result.violated:
                     result.infeasible = True
                     result.violated.append(r.task)
-        # a bound shaped the solution (a zero bound: the joint rests exactly at its limit)
-        result.saturated = bool(((ub - qdot <= 1e-9) & (np.abs(ub) > 1e-9)).any()
-                                or ((qdot - lb <= 1e-9) & (np.abs(lb) > 1e-9)).any())
+        result.saturated = _saturated(qdot, lb, ub)
         if len(singular_values) > n_eq:  # tasks switched off since: their values no longer count
             self._singular_values = singular_values = {
                 r.task: singular_values[r.task] for r in rows if not r.inequality and r.task in singular_values}
@@ -256,7 +254,7 @@ class QpSolver(Solver):
             sense = np.zeros(lower.shape[0], dtype=np.int32)
             sense[n + n_ineq:] = _EQUALITY
         x, _, exitflag, _ = self._daqp(H, f, C, upper, lower, sense)
-        return x[:n] if exitflag >= 1 and np.isfinite(x).all() else None
+        return x[:n] if exitflag >= 1 and (math.isfinite(x.sum()) or np.isfinite(x).all()) else None
 
     def _solve_qpsolvers(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, lower: np.ndarray,
                          upper: np.ndarray, n_ineq: int, n: int) -> np.ndarray | None:
@@ -279,6 +277,15 @@ class QpSolver(Solver):
         except Exception:  # noqa: BLE001 - a backend failing on a degenerate level is an infeasible level
             return None
         return None if x is None or not np.isfinite(x).all() else x[:n]
+
+
+def _saturated(qdot: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> bool:
+    """Whether a bound shaped the solution (a zero bound: the joint rests exactly at its limit).
+    Over Python floats: for a few joints ten numpy calls cost several times this loop."""
+    for x, lo, hi in zip(qdot.tolist(), lb.tolist(), ub.tolist()):
+        if (hi - x <= 1e-9 and abs(hi) > 1e-9) or (x - lo <= 1e-9 and abs(lo) > 1e-9):
+            return True
+    return False
 
 
 def _satisfied(rows: list[ConstraintRows], qdot: np.ndarray) -> bool:
