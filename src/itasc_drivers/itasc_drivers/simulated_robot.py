@@ -16,7 +16,6 @@ takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)`
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from dataclasses import replace
 from typing import Literal
@@ -33,6 +32,7 @@ from itasc_core.communication.samples import JointSample
 from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import ParameterModel
 from itasc_core.entity import CompositeContext
+from itasc_core.finite import all_finite
 from itasc_core.itasc.robot import Robot
 
 from .ports import driver_ports
@@ -110,7 +110,7 @@ class SimulatedRobot(FunctionalEntity):
             velocity = np.zeros(robot.nv)
         else:
             velocity = self._own(command)
-            if not math.isfinite(velocity.sum()):  # one check for the usual case: all finite
+            if not all_finite(velocity):
                 velocity = np.where(np.isfinite(velocity), velocity, 0.0)
             velocity = np.minimum(np.maximum(velocity, -robot.velocity_limit), robot.velocity_limit)
         if dt > 0.0:

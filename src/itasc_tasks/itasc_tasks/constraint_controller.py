@@ -42,7 +42,7 @@ def control_error(y: np.ndarray, y_desired: np.ndarray, *, rotation: int | None 
     e = y_desired - y
     if rotation is not None:
         r = slice(rotation, rotation + 3)
-        e[r] = pin.log3(pin.exp3(y_desired[r]) @ pin.exp3(y[r]).T)
+        e[r] = pin.log3(pin.exp3(y_desired[r]).dot(pin.exp3(y[r]).T))
     return e
 
 

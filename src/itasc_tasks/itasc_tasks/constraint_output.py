@@ -38,14 +38,14 @@ class Selection:
     def select(self, features: np.ndarray) -> np.ndarray:
         """Output values of a full feature vector (chi_f, a feature-space setpoint or its velocity)."""
         y = features[self.index]
-        return y if self.combination is None else self.combination @ y
+        return y if self.combination is None else self.combination.dot(y)
 
     def __call__(self, features: np.ndarray, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(y, J_y)`` of the chain's ``(chi_f, J_f)``."""
         index, C = self.index, self.combination
         if C is None:
             return features[index], jacobian[index]
-        return C @ features[index], C @ jacobian[index]
+        return C.dot(features[index]), C.dot(jacobian[index])
 
 
 class ConstraintOutput:

@@ -132,7 +132,7 @@ class PointToPoint:
         s, sdot = self._profile(t - self._t0) if self.period > 0.0 else (1.0, 0.0)
         if isinstance(self._from, pin.SE3):
             a, d = self._from, self._delta
-            pose = pin.SE3(a.rotation @ pin.exp3(s * d[3:]), a.translation + s * d[:3])
+            pose = pin.SE3(a.rotation.dot(pin.exp3(s * d[3:])), a.translation + s * d[:3])
             return pose, sdot * self._twist
         return self._from + s * self._delta, sdot * self._delta
 

@@ -93,7 +93,7 @@ class DistanceVKC:
         p = pose.translation
         distance = float(np.linalg.norm(p))
         direction = p / distance if distance > 1e-12 else np.zeros(3)
-        return np.array([distance]), (direction @ jacobian[:3])[None, :]
+        return np.array([distance]), direction.dot(jacobian[:3])[None, :]
 
 
 class JointVKC:

@@ -90,4 +90,4 @@ class ConstraintRowsEntity(FunctionalEntity):
             weights=self._row_weights))
         error = control.error
         self.outputs['state'].write(TaskStateSample(t, self.task, output=output.value, setpoint=control.setpoint,
-                                                    error=error, error_norm=math.sqrt(float(error @ error))))
+                                                    error=error, error_norm=math.sqrt(float(error.dot(error)))))

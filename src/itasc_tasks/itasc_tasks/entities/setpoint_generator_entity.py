@@ -26,7 +26,6 @@ is reached; Monitors watch it to tell the Coordinator that a motion is over).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -41,6 +40,7 @@ from itasc_core.computation.functional_entity import FunctionalEntity
 from itasc_core.computation.parameters import Names, ParameterModel
 from itasc_core.communication.qos import OUTSIDE_QOS
 from itasc_core.communication.samples import Float64Sample
+from itasc_core.finite import all_finite
 from itasc_core.itasc.entities.messages import FeaturesSample, SetpointSample
 from itasc_core.kinds import with_kind
 
@@ -130,7 +130,7 @@ class SetpointGeneratorEntity(FunctionalEntity):
         value, velocity = self._output_setpoint(value, velocity, selection=selection, rotation=features.rotation)
         names = selection.names
         value, velocity = np.asarray(value, dtype=float), np.asarray(velocity, dtype=float)
-        if (not math.isfinite(value.sum()) and not np.isfinite(value).all()) or (self._subscription is not None and value.shape != (len(names),)):
+        if not all_finite(value) or (self._subscription is not None and value.shape != (len(names),)):
             self.raise_event(SAFETY_EVENT, priority=True,
                              detail=f'{self.source}: setpoint {value.tolist()} is not {len(names)} finite values')
             return

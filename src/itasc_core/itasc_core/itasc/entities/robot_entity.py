@@ -11,7 +11,6 @@ computed once per tick by the Scene, which owns the world model.
 
 from __future__ import annotations
 
-import math
 from typing import Literal
 
 import numpy as np
@@ -22,6 +21,7 @@ from ...communication.event_names import JOINTS_MISSING, SAFETY_EVENT, event
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
 from ...computation.parameters import ParameterModel
+from ...finite import all_finite
 from ..robot import Robot
 from .messages import JointSample
 
@@ -82,7 +82,7 @@ class RobotEntity(FunctionalEntity):
                                  detail=', '.join(n for n in self.joint_names if n not in present))
             return
         positions = msg.position[index]
-        if not math.isfinite(positions.sum()) and not np.isfinite(positions).all():  # one sum, usually
+        if not all_finite(positions):
             self.raise_event(SAFETY_EVENT, priority=True,
                              detail=f'{self.robot.name}: non-finite joint positions')
             return

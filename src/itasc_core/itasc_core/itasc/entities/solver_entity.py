@@ -39,6 +39,7 @@ from ...communication.event_names import SAFETY_EVENT, solver_status
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
 from ...computation.parameters import ParameterModel
+from ...finite import all_finite
 from ...kinds import with_kind
 from ..solver.kind import SOLVERS
 from ..solver.problem import ConstraintRows
@@ -144,7 +145,7 @@ class SolverEntity(FunctionalEntity):
             rows = self._rows(t)
             result = self.solver.solve(rows, q=q, lower=self.lower, upper=self.upper,
                                        velocity_limit=self.velocity_limit, dt=self._dt)
-            if not math.isfinite(result.qdot.sum()) and not np.isfinite(result.qdot).all():  # one sum, usually
+            if not all_finite(result.qdot):
                 raise NonFinite('the solver returned non-finite joint velocities')
             if result.infeasible:
                 self._report(result, t)
@@ -163,7 +164,7 @@ class SolverEntity(FunctionalEntity):
         else:
             by_name = dict(zip(state.name, state.position))
             q = np.array([by_name.get(n, math.nan) for n in self.joint_names], dtype=float)
-        if q.shape != (len(self.joint_names),) or not math.isfinite(q.sum()):
+        if q.shape != (len(self.joint_names),) or not all_finite(q):
             raise NonFinite('joint positions missing or non-finite')
         return q
 

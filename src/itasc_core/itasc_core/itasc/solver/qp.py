@@ -47,6 +47,7 @@ from scipy.linalg.lapack import dorgqr as _orgqr
 from pydantic import Field, field_validator
 
 from ...computation.parameters import ParameterModel
+from ...finite import all_finite
 from .kind import Solver
 from .problem import ConstraintRows, SolverResult, group_levels, velocity_bounds
 
@@ -155,7 +156,7 @@ class QpSolver(Solver):
             if k == len(levels) - 1:
                 break
             for r in ineq:
-                y = r.J @ qdot
+                y = r.J.dot(qdot)
                 kept.append((r.J, np.minimum(r.lower, y), np.maximum(r.upper, y)))
             if eq:
                 locked = self._lock(locked, np.concatenate([r.J for r in eq]))
@@ -163,7 +164,7 @@ class QpSolver(Solver):
                     break
         for r in rows:
             if r.inequality:
-                y = r.J @ qdot
+                y = r.J.dot(qdot)
                 violation = np.maximum(r.lower - y, y - r.upper)
                 if violation.max(initial=0.0) > self.slack_tolerance and r.task not in result.violated:
                     result.infeasible = True
@@ -211,8 +212,8 @@ class QpSolver(Solver):
             w = np.concatenate([r.weights for r in eq]) if len(eq) > 1 else eq[0].weights
             d = np.concatenate([r.desired for r in eq]) if len(eq) > 1 else eq[0].desired
             WJ = w[:, None] * J
-            np.matmul(J.T, WJ, out=H[:n, :n])
-            np.matmul(d, WJ, out=f[:n])
+            H[:n, :n] = J.T.dot(WJ)  # ndarray.dot: half of np.matmul's cost on arrays this small
+            np.dot(d, WJ, out=f[:n])
             f[:n] *= -1.0
         H.flat[:n * m:m + 1] += reg
         mk = 0
@@ -254,7 +255,7 @@ class QpSolver(Solver):
             sense = np.zeros(lower.shape[0], dtype=np.int32)
             sense[n + n_ineq:] = _EQUALITY
         x, _, exitflag, _ = self._daqp(H, f, C, upper, lower, sense)
-        return x[:n] if exitflag >= 1 and (math.isfinite(x.sum()) or np.isfinite(x).all()) else None
+        return x[:n] if exitflag >= 1 and all_finite(x) else None
 
     def _solve_qpsolvers(self, H: np.ndarray, f: np.ndarray, C: np.ndarray, lower: np.ndarray,
                          upper: np.ndarray, n_ineq: int, n: int) -> np.ndarray | None:
@@ -291,7 +292,7 @@ def _saturated(qdot: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> bool:
 def _satisfied(rows: list[ConstraintRows], qdot: np.ndarray) -> bool:
     """Whether ``qdot`` meets every inequality row of ``rows``."""
     for r in rows:
-        y = r.J @ qdot
+        y = r.J.dot(qdot)
         if not ((r.lower <= y).all() and (y <= r.upper).all()):
             return False
     return True
