@@ -190,9 +190,10 @@ class SolverEntity(FunctionalEntity):
             J[:, columns] = sample.jacobian
         row = ConstraintRows(sample.task, int(sample.priority), J, sample.desired, sample.lower, sample.upper,
                              sample.weights, inequality=sample.inequality)
-        # one sum each for the usual case (a NaN or inf makes it non-finite); the exact test otherwise
-        if not (math.isfinite(J.sum() + row.desired.sum() + row.weights.sum())
-                and not math.isnan(row.lower.sum() - row.upper.sum())):
+        # one sum each for the usual case (a NaN or inf makes it non-finite; Python's over the few
+        # values of a Task's rows); the exact test otherwise
+        if not (math.isfinite(J.sum()) and all_finite(row.desired) and all_finite(row.weights)
+                and not math.isnan(sum(row.lower.tolist()) - sum(row.upper.tolist()))):
             if not (np.isfinite(J).all() and np.isfinite(row.desired).all() and np.isfinite(row.weights).all()
                     and not np.isnan(row.lower).any() and not np.isnan(row.upper).any()):
                 raise NonFinite(f'non-finite constraint rows from task {sample.task}')
