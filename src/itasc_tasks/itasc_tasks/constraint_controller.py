@@ -59,7 +59,7 @@ def inequality_control(y: np.ndarray, *, lower: np.ndarray | float, upper: np.nd
     """Keep y within ``[lower, upper]``: ``kp (lower - y) <= ydot <= kp (upper - y)``. Inside the band
     the setpoint is y itself (no error); beyond it, the nearest bound. An infinite bound is no bound
     at any gain (with ``kp = 0`` it would be 0 * inf = NaN)."""
-    setpoint = np.clip(y, lower, upper)
+    setpoint = np.minimum(np.maximum(y, lower), upper)  # np.clip: the same through two Python wrappers
     if isinstance(kp, (int, float)) and kp > 0 or np.all(np.asarray(kp) > 0):
         low, high = kp * (lower - y), kp * (upper - y)
     else:

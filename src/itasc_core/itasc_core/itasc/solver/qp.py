@@ -292,9 +292,9 @@ def _saturated(qdot: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> bool:
 def _satisfied(rows: list[ConstraintRows], qdot: np.ndarray) -> bool:
     """Whether ``qdot`` meets every inequality row of ``rows``."""
     for r in rows:
-        y = r.J.dot(qdot)
-        if not ((r.lower <= y).all() and (y <= r.upper).all()):
-            return False
+        for lo, y, hi in zip(r.lower.tolist(), r.J.dot(qdot).tolist(), r.upper.tolist()):
+            if not lo <= y <= hi:  # a NaN meets no row
+                return False
     return True
 
 
