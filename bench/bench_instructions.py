@@ -40,6 +40,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+from bench_app import _domain  # noqa: E402 - the benchmarks' ROS domain (ITASC_BENCH_DOMAIN)
+
 #: Ticks run before counting (the first ones build caches and specialise the interpreter).
 WARM_UP = 100
 
@@ -94,7 +96,7 @@ def count(app: str, *, ticks: int, rate: float, solver: bool = False) -> int:
                    f'--callgrind-out-file={Path(tmp) / "callgrind.out"}', sys.executable, __file__,
                    '--child', 'solver' if solver else 'ticks', '--app', app, '--ticks', str(ticks),
                    '--rate', str(rate)]
-        env = dict(os.environ, ROS_DOMAIN_ID=os.environ.get('ITASC_BENCH_DOMAIN', str(102 + os.getpid() % 100)))
+        env = dict(os.environ, ROS_DOMAIN_ID=str(_domain()))
         out = subprocess.run(command, capture_output=True, text=True, env=env, timeout=1800)
     collected = re.search(r'Collected : (\d+)', out.stderr)
     if out.returncode != 0 or collected is None:

@@ -144,7 +144,8 @@ class QpSolver(Solver):
                 if (step - i_eq * period // n_eq) % period == 0:
                     singular_values[r.task] = _smallest_singular_value(_free_part(r, locked))
                 i_eq += 1
-            if k == 0 and not eq and _satisfied(ineq, qdot):
+            at_rest = k == 0 and not eq and _satisfied(ineq, qdot)
+            if at_rest:
                 x = qdot  # the rest point meets every row: it is this level's optimum, no QP
             else:
                 x = self._solve_level(n, eq, ineq, locked, qdot, kept, lb, ub, reg)
@@ -156,6 +157,9 @@ class QpSolver(Solver):
             if k == len(levels) - 1:
                 break
             for r in ineq:
+                if at_rest:  # within its bounds already: they are kept as they are
+                    kept.append((r.J, r.lower, r.upper))
+                    continue
                 y = r.J.dot(qdot)
                 kept.append((r.J, np.minimum(r.lower, y), np.maximum(r.upper, y)))
             if eq:
