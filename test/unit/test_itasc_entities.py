@@ -10,11 +10,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 import rclpy
 from geometry_msgs.msg import PoseStamped
-from itasc_msgs.msg import ConstraintRows
+from itasc_msgs.msg import ConstraintRows, Features
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
+from rclpy.time import Time
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -25,6 +29,7 @@ from itasc_core.configuration import Configurator
 from itasc_core.entity import CompositeContext
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
+from itasc_core.communication.cdr import serialize
 from itasc_core.communication.samples import JointSample, as_message, as_sample
 from itasc_core.itasc.entities.messages import ControlSample, FeaturesSample, stamp
 from itasc_drivers.fake_ros2_control import PANDA, PANDA_READY, FakeRos2Control
@@ -116,6 +121,20 @@ def test_features_travel_as_a_typed_message_and_back():
     msg.jacobian = [1.0, 2.0]
     with pytest.raises(ValueError, match='3 names on 3 joints'):
         as_sample(msg)
+
+
+def test_a_relation_written_with_its_pose_carries_the_poses_coordinates():
+    """The Scene writes a relation's pose, not its coordinates: whoever reads them, in the process
+    or from the message (the recorder, ``ros2 topic echo``), gets the pose's ``[p, log3(R)]``."""
+    pose = pin.SE3(pin.exp3(np.array([0.3, -1.2, 2.0])), np.array([0.1, -0.2, 0.7]))
+    coordinates = np.concatenate([pose.translation, pin.log3(pose.rotation)])
+    sample = FeaturesSample(0.5, ('x', 'y', 'z', 'rx', 'ry', 'rz'), ('j1',), None, np.ones((6, 1)), rotation=3,
+                            pose=pose)
+    assert np.allclose(sample.value, coordinates)
+    received = as_sample(deserialize_message(serialize(sample), Features))
+    assert np.allclose(received.value, coordinates) and received.rotation == 3
+    with pytest.raises(ValueError, match='value or the pose'):
+        FeaturesSample(0.5, ('distance',), ('j1',), None, np.ones((1, 1)))
 
 
 # -- Robot, Scene, Task entities, Solver, simulated Driver -------------------------------------------------
@@ -404,6 +423,22 @@ def test_simulated_robot_respects_velocity_and_position_limits(world):
     assert state.velocity[3] == pytest.approx(2.175)
     assert state.position[3] == pytest.approx(-0.0698)  # panda_joint4's upper limit
     assert state.position[:3] == pytest.approx(PANDA_READY[:3])
+
+
+def test_simulated_robot_stamps_its_joint_state_with_the_nodes_clock(world):
+    """System time, unless the node uses simulated time (``use_sim_time``, rclpy's own parameter,
+    which an entity leaves to rclpy): then the ROS clock's."""
+    driver = world.entity(SimulatedRobot, 'Driver_panda', robot='panda', urdf=URDF)
+    before = time.time()
+    driver.update(0.0)
+    assert before <= driver.outputs['joint_state'].last.t <= time.time()
+    assert driver.set_parameters([Parameter('use_sim_time', value=True)])[0].successful
+    driver.get_clock().set_ros_time_override(Time(seconds=42, nanoseconds=5_000_000))
+    driver.update(0.01)
+    assert driver.outputs['joint_state'].last.t == pytest.approx(42.005)
+    assert driver.set_parameters([Parameter('use_sim_time', value=False)])[0].successful
+    driver.update(0.02)
+    assert driver.outputs['joint_state'].last.t >= before
 
 
 def test_simulated_robot_moves_within_the_application_models_joint_limits(world, tmp_path):

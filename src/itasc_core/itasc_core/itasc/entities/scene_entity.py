@@ -37,7 +37,7 @@ from ...communication.event_names import SAFETY_EVENT
 from ...communication.ports import PortSpec
 from ...computation.functional_entity import FunctionalEntity
 from ...computation.parameters import ParameterModel
-from ..coordinates import POSE_FEATURES, pose_features
+from ..coordinates import POSE_FEATURES
 from ..objects import Object, periodic_translation
 from ..robot import Robot
 from ..scene import Scene
@@ -199,8 +199,8 @@ class SceneEntity(FunctionalEntity):
         self.outputs['joint_state'].write(JointSample(t, joints, scene.q.copy()))
         for o1, o2, outputs in self._relations:
             pose = scene.relative_pose(o1, o2)
-            sample = FeaturesSample(t, POSE_FEATURES, joints, pose_features(pose, coordinates='xyz_log3'),
-                                    scene.relative_jacobian(o1, o2), rotation=3, pose=pose)
+            sample = FeaturesSample(t, POSE_FEATURES, joints, None, scene.relative_jacobian(o1, o2), rotation=3,
+                                    pose=pose)  # the value (xyz_log3) computed if read
             for output in outputs:
                 output.write(sample)
 
