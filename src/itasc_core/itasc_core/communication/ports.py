@@ -236,8 +236,10 @@ class ListenedPublisher:
             self._looked_for = (count, idle) if known else None
         return self._listened
 
-    def publish(self, sample: Any) -> None:
-        now = time.monotonic()
+    def publish(self, sample: Any, now: float | None = None) -> None:
+        """Send ``sample`` if a reader listens (``now``: ``time.monotonic()``, if the caller has it)."""
+        if now is None:
+            now = time.monotonic()
         if now - self._checked_at > self.RECHECK_PERIOD:
             self._checked_at = now
             self._listened = self._listening()
@@ -301,11 +303,12 @@ class OutputPort:
         if type(sample) is self.spec.msg_type:
             sample = as_sample(sample)
         self.last = sample
+        now = time.monotonic()  # one reading for the sinks' arrival and the DDS side's recheck
         for sink in self._sinks:
-            sink.deliver(sample, self.topic)
+            sink.deliver(sample, self.topic, now)
         for tap in self._taps:
             tap(self.topic, sample)
-        self._dds.publish(sample)
+        self._dds.publish(sample, now)
 
     def destroy(self) -> None:
         self._bus.unregister(self)
@@ -419,13 +422,14 @@ class InputPort:
         (:meth:`LocalBus.set_idle`): what came from there was written before, and holds no more."""
         return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.idle)
 
-    def deliver(self, msg: Any, topic: str) -> None:
-        """Take a sample (or its ROS message, turned into the sample) from ``topic``."""
+    def deliver(self, msg: Any, topic: str, now: float | None = None) -> None:
+        """Take a sample (or its ROS message, turned into the sample) from ``topic``, arrived
+        ``now`` (``time.monotonic()``; read here if not given)."""
         if type(msg) is self.spec.msg_type:
             msg = as_sample(msg)
         self.latest = msg
         self.received += 1
-        self.received_at = time.monotonic()
+        self.received_at = time.monotonic() if now is None else now
         if self.spec.multiple:
             self.samples[topic] = msg
         if self._on_sample is not None:
