@@ -150,11 +150,16 @@ class EventListener:
             return
         self._handle(msg)
 
+    #: Events buffered by the listeners of this process so far (any thread): while it does not
+    #: change, no listener holds an event it did not hold before (the Composers' pass after a tick).
+    buffered = 0
+
     def _handle(self, msg: Event) -> None:
         if (msg.priority or self._immediate) and self._on_priority is not None:
             self._on_priority(msg)
         else:
             self._buffer.append(msg)
+            EventListener.buffered += 1
             if self._on_held is not None and len(self._buffer) == 1:  # the reader drains all it holds
                 self._on_held()
 

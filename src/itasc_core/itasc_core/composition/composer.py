@@ -38,7 +38,7 @@ from ..communication.event_names import (BIND, CHECK_FAULTS, CLEANED, CLEANUP, C
                                           COMPUTATION_CLEANED, CONFIGURED, CONNECT, CONNECT_FAILED,
                                           CONNECTED, CONNECTION_REFUSED, DEPLOY, DEPLOY_FAILED, DEPLOYED,
                                           FAULTS_CHECKED, SAFETY_EVENT, STOP, STOPPED, event, owner_of)
-from ..communication.events import EventRaiser, events_topic
+from ..communication.events import EventListener, EventRaiser, events_topic
 from ..communication.ports import SemanticMismatch, check_connection
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
@@ -131,6 +131,7 @@ class Composer(Entity):
         self._lock = threading.Lock()  # the process watchers run in threads of their own
         #: The composite's Functional Entities were cleaned up (it stopped): nothing more to compose.
         self.cleaned = False
+        self._coordinated = -1  # EventListener.buffered when the last pass of :meth:`coordinate` began
         c = context.name
         self._steps = {
             event(c, DEPLOY): self.deploy,
@@ -216,8 +217,15 @@ class Composer(Entity):
         this process, each command delivered before its receiver's turn. So a Monitor's event in
         one tick is acted on in the next: a configuration switch of the Running sub-FSM reaches the
         Task's Configurator between the two (issue #9: a reaction in two ticks, not a Coordinator
-        update period per composite)."""
-        self._coordinate(EventHub.of(self.context))
+        update period per composite). A pass after which no listener of the process buffered an
+        event finds nothing to take: it ends after the flush (the usual tick)."""
+        hub = EventHub.of(self.context)
+        if hub is not None:
+            hub.flush()
+        if EventListener.buffered == self._coordinated:
+            return
+        self._coordinated = EventListener.buffered  # what is buffered from now on is the next pass's
+        self._coordinate(hub)
 
     def _coordinate(self, hub: EventHub | None) -> None:
         """:meth:`coordinate`, with the process's hub (the children here share it)."""
