@@ -266,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
             if outcome.stop_request is not None and not stop_requested:  # an operator's ~/stop
                 stop_requested.append(f'~/stop: {outcome.stop_request}')
             runtime.reap()
-            watch.poll_timer(composer.timer)
+            watch.poll(composer.timer)
             console.show_safety()
             for line in waits.due():
                 console.show(line)
@@ -306,6 +306,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
                 code = EXIT_ERROR
                 break
+        watch.poll(composer.timer)  # the last ticks' samples, for the summary
         console.show_safety()
         warnings = list(outcome.warnings()) + undrawn + [
             f'no state of composite {name} was received ({composites[name]}/state): DDS did not discover its process '
