@@ -81,6 +81,7 @@ class SimulatedRobot(FunctionalEntity):
             limits[key] = np.array(given, dtype=float) if given else urdf
         for key, values in limits.items():
             getattr(robot, key)[:] = values
+        self._lowest_velocity = -robot.velocity_limit
         if not first:
             return
         self.robot = robot
@@ -111,12 +112,15 @@ class SimulatedRobot(FunctionalEntity):
             velocity = self._own(command)
             if not all_finite(velocity):
                 velocity = np.where(np.isfinite(velocity), velocity, 0.0)
-            velocity = np.minimum(np.maximum(velocity, -robot.velocity_limit), robot.velocity_limit)
+            velocity = np.minimum(np.maximum(velocity, self._lowest_velocity), robot.velocity_limit)
         if dt > 0.0:
             robot.integrate(velocity, dt)
-            robot.set_position_vector(self._within_limits(robot.positions))
+            positions = self._within_limits(robot.positions)
+            robot.set_position_vector(positions)
+        else:
+            positions = robot.positions
         self.velocity = velocity
-        self._publish()
+        self._publish(positions)
 
     def _own(self, command: JointSample) -> np.ndarray:
         """This robot's joint velocities in a command (by name; joints it does not name: 0)."""
@@ -139,8 +143,11 @@ class SimulatedRobot(FunctionalEntity):
             return time.time()
         return self._stamp_clock.now().nanoseconds * 1e-9
 
-    def _publish(self) -> None:
-        sample = JointSample(self._now(), self._names, self.robot.positions, velocity=self.velocity)
+    def _publish(self, positions: np.ndarray | None = None) -> None:
+        """The joint state: ``positions`` (the robot's, if not given: a copy the sample keeps)."""
+        if positions is None:
+            positions = self.robot.positions
+        sample = JointSample(self._now(), self._names, positions, velocity=self.velocity)
         self.outputs['joint_state'].write(sample)
         self._joint_states.write(sample)
 
