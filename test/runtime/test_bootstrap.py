@@ -91,28 +91,33 @@ def test_ctrl_c_leads_to_an_orderly_stop_and_exit_0(deploy):
         assert sequences.get(composite, [''])[-1] == 'Active.Stop.Stopped.NotifyStopped', app.output()
 
 
-def _cpu_of_main_thread(pid: int) -> float:
-    """The CPU time process ``pid``'s main thread has used so far [s] (user + system)."""
-    with open(f'/proc/{pid}/task/{pid}/stat') as stat:
-        fields = stat.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')  # utime, stime
+def _runnable_time_of_main_thread(pid: int) -> float:
+    """How long process ``pid``'s main thread has wanted a CPU so far [s]: the time it ran plus the
+    time it waited in a run queue for one (``/proc/<pid>/task/<pid>/schedstat``). A thread that
+    spins wants a CPU all the time, however much of it the machine's other processes take."""
+    with open(f'/proc/{pid}/task/{pid}/schedstat') as stat:
+        on_cpu, waiting, _ = (int(field) for field in stat.read().split())
+    return (on_cpu + waiting) * 1e-9
 
 
 def test_between_ticks_the_thread_that_ticks_waits_or_spins_as_told():
-    """``--between-ticks wait``: the bootstrap's thread waits for each tick, using the CPU for the
-    ticks only; ``spin``: it polls between ticks and keeps its core busy (a wait there makes the
-    next tick up to a third slower on a virtual machine)."""
+    """``--between-ticks wait``: the bootstrap's thread waits for each tick, wanting a CPU for the
+    ticks only; ``spin``: it polls between ticks and wants its core most of the time (a wait there
+    makes the next tick up to a third slower on a virtual machine; what it does not want is the
+    executor's zero-timeout polls, which sleep ~60 us each: ~0.75 of the time runnable at 200 Hz).
+    Measured as the share of the time the thread ran or waited to run, not as the CPU time it got,
+    which depends on what else the machine runs (0.69 of a core once, the other test worker busy)."""
     busy = {}
     for mode in ('wait', 'spin'):
         with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--rate', '200', '--between-ticks', mode,
                       '--duration', '4']) as app:
             app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
             time.sleep(0.5)
-            cpu, since = _cpu_of_main_thread(app.process.pid), time.monotonic()
+            runnable, since = _runnable_time_of_main_thread(app.process.pid), time.monotonic()
             time.sleep(2.0)
-            busy[mode] = (_cpu_of_main_thread(app.process.pid) - cpu) / (time.monotonic() - since)
+            busy[mode] = (_runnable_time_of_main_thread(app.process.pid) - runnable) / (time.monotonic() - since)
             assert app.finish(timeout=60) == 0, app.output()
-    assert busy['spin'] > 0.7, busy  # a core, less what the other processes of a 2-core machine take
+    assert busy['spin'] > 0.5, busy
     assert busy['wait'] < busy['spin'] / 2, busy
 
 
