@@ -64,4 +64,4 @@ class Watch:
             else:
                 facts.on_task(task, sample)
         if timer is not None:
-            self.facts.on_ticks(timer.stamps, timer.durations, dropped=timer.dropped)
+            facts.on_ticks(timer.stamps, timer.durations, dropped=timer.dropped)

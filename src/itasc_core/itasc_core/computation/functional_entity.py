@@ -145,7 +145,9 @@ class FunctionalEntity(Entity):
         entity can tell (a frame its Scene does not have) refuses the change too, and the entity
         goes on with the values it had. rclpy has checked type, range and read-only before, and
         stores the values only after this says yes. The node's own parameters are left to rclpy
-        (``ros2 param set <entity> use_sim_time true`` switches its clock to ``/clock``)."""
+        (``set_parameters([Parameter('use_sim_time', value=True)])`` on the entity's node switches
+        its clock to ``/clock``; the entities serve no parameter services, their Configurator serves
+        the model's parameters only)."""
         parameters = [p for p in parameters if p.name not in self._node_parameters]
         if not parameters:
             self._configured = self.params
