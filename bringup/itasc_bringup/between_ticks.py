@@ -16,9 +16,15 @@ the next tick is more than :data:`SERVE_BEFORE` away, at least every :data:`SERV
 
 Spinning keeps a core busy. So ``auto`` (the default) spins only at :data:`SPIN_RATE` Hz and more
 (the ~0.2 ms a sleep costs a tick matters in a period of a few milliseconds, not in one of 10 ms)
-while the ticks take at least :data:`SPIN_FROM` of the period (the median of the recent ones),
-when that third of a tick decides whether the rate holds, and waits again below
-:data:`WAIT_BELOW` (the ticks are shorter while it spins); ``spin`` and ``wait`` choose for good.
+once the ticks take :data:`SPIN_FROM` of the period while it waits (the median of the recent ones):
+the third of a tick a sleep costs is then a tenth of the period or more. Spinning, the ticks are
+shorter, so the share it sees then is turned into the share they would take waiting, by how much
+shorter they became when it started to spin (:data:`MAX_SLOWDOWN` at most), and it waits again once
+that is below :data:`WAIT_BELOW`. Thresholds on the share as it comes were a trap (50 % to spin, 30 %
+to wait again): ``approach_object`` at 1 kHz takes 35-37 % of the period spinning and 40-57 % waiting
+(15 s runs, ``bench/bench_app.py --json --between-ticks spin|wait``), so it waited for good, its
+ticks 1.1-1.5x longer, when its first ticks took less than half the period or a quiet moment took
+the spinning ones below 30 %. ``spin`` and ``wait`` choose for good.
 """
 
 from __future__ import annotations
@@ -28,15 +34,18 @@ import statistics
 import time
 from typing import Any, Callable
 
-__all__ = ['BetweenTicks', 'MODES', 'SPIN_FROM', 'SPIN_RATE', 'WAIT_BELOW']
+__all__ = ['BetweenTicks', 'MAX_SLOWDOWN', 'MODES', 'SPIN_FROM', 'SPIN_RATE', 'WAIT_BELOW']
 
 MODES = ('auto', 'spin', 'wait')
 #: ``auto`` spins at this rate [Hz] and more ...
 SPIN_RATE = 250.0
-#: ... once the ticks take this share of the period ...
-SPIN_FROM = 0.5
-#: ... and waits again once they take less than this.
-WAIT_BELOW = 0.3
+#: ... once the ticks take this share of the period while it waits between them ...
+SPIN_FROM = 0.3
+#: ... and waits again once they would take less than this waiting (see :data:`MAX_SLOWDOWN`).
+WAIT_BELOW = 0.2
+#: Spinning, the share the ticks would take waiting is the spinning share times how much longer the
+#: ticks took before it started to spin than after (the median of each), at least 1, at most this.
+MAX_SLOWDOWN = 2.0
 #: How long the executor waits for an event while the thread does not spin [s].
 WAIT = 0.02
 #: Spinning, the executor is served only while the next tick is further away than this [s] (its
@@ -47,7 +56,8 @@ SERVE_BEFORE = 0.0006
 SERVE_PERIOD = 0.0002
 SERVE_AT_LEAST = 0.002
 #: The share is the median of the newest ``RECENT // 2`` ticks, once ``RECENT`` ran (the first
-#: ticks of a run are slow); ``auto`` looks at it every ``DECIDE_PERIOD`` seconds.
+#: ticks of a run are slow), and of at least ``RECENT // 4`` when only those since a moment count;
+#: ``auto`` looks at it every ``DECIDE_PERIOD`` seconds.
 RECENT = 200
 DECIDE_PERIOD = 0.25
 #: Ticks older than this [s] do not count: a Timer whose hierarchy stopped computing is idle.
@@ -70,6 +80,10 @@ class BetweenTicks:
         self.spinning = mode == 'spin'
         self._decided_at = -float('inf')
         self._served_at = -float('inf')
+        #: ``auto``, spinning: when it started, the share before, and the slowdown once measured.
+        self._spun_at = -float('inf')
+        self._waiting_share = 0.0
+        self._slowdown: float | None = None
 
     def step(self, executor) -> None:
         """One turn of the thread: the executor's next event (waiting for it at most
@@ -88,21 +102,41 @@ class BetweenTicks:
             executor.spin_once(timeout_sec=0.0)
 
     def _spin(self) -> bool:
-        if self.mode == 'auto' and self._clock() - self._decided_at >= DECIDE_PERIOD:
-            self._decided_at = self._clock()
-            share = self.share()
-            spinning = share >= SPIN_FROM or (self.spinning and share >= WAIT_BELOW)
-            if spinning != self.spinning:
-                self.spinning = spinning
-                if self._on_change is not None:
-                    self._on_change(spinning, share)
+        if self.mode != 'auto' or self._clock() - self._decided_at < DECIDE_PERIOD:
+            return self.spinning
+        self._decided_at = self._clock()
+        share = self.share()
+        if not self.spinning:
+            if share >= SPIN_FROM:
+                self._spun_at, self._waiting_share, self._slowdown = self._clock(), share, None
+                self._change(True, share)
+        elif not share:  # stale, or no longer fast: nothing to spin for
+            self._change(False, share)
+        else:
+            if self._slowdown is None:
+                spinning_share = self.share(since=self._spun_at)
+                if not spinning_share:  # too few ticks since it started to spin
+                    return True
+                self._slowdown = min(MAX_SLOWDOWN, max(1.0, self._waiting_share / spinning_share))
+            if share * self._slowdown < WAIT_BELOW:
+                self._change(False, share)
         return self.spinning
 
-    def share(self) -> float:
-        """The median share of the period the newest computing ticks took (0 before there are enough,
-        and below :data:`SPIN_RATE`)."""
+    def _change(self, spinning: bool, share: float) -> None:
+        self.spinning = spinning
+        if self._on_change is not None:
+            self._on_change(spinning, share)
+
+    def share(self, *, since: float = -float('inf')) -> float:
+        """The median share of the period the newest computing ticks took (those that started after
+        ``since``, ``time.monotonic()``); 0 before there are enough, and below :data:`SPIN_RATE`."""
         timer = self._timer()
         if timer is None or timer.rate < SPIN_RATE or len(timer.stamps) < RECENT \
                 or self._clock() - timer.stamps[-1] > STALE:
             return 0.0
-        return statistics.median(itertools.islice(reversed(timer.durations), RECENT // 2)) * timer.rate
+        newest = list(itertools.islice(
+            itertools.takewhile(lambda tick: tick[0] > since, zip(reversed(timer.stamps), reversed(timer.durations))),
+            RECENT // 2))
+        if len(newest) < RECENT // 4:
+            return 0.0
+        return statistics.median(duration for _, duration in newest) * timer.rate

@@ -33,7 +33,7 @@ import signal
 import sys
 import time
 
-from .between_ticks import MODES, SPIN_FROM, SPIN_RATE, BetweenTicks
+from .between_ticks import MODES, SPIN_FROM, SPIN_RATE, WAIT_BELOW, BetweenTicks
 
 __all__ = ['main', 'parse_args']
 
@@ -83,8 +83,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--rate', type=float, default=None, help='override the Timer rate (Hz)')
     parser.add_argument('--between-ticks', choices=MODES, default='auto',
                         help='between two ticks, wait for the next one or spin (a core busy; on a virtual machine '
-                             f'the ticks are up to a third faster); auto: spin at {SPIN_RATE:g} Hz and more while '
-                             f'the ticks take at least {SPIN_FROM * 100:.0f}%% of the period (default)')
+                             f'the ticks are up to a third faster); auto: spin at {SPIN_RATE:g} Hz and more once '
+                             f'the ticks take {SPIN_FROM * 100:.0f}%% of the period waiting, until they would take '
+                             f'less than {WAIT_BELOW * 100:.0f}%% (default)')
     parser.add_argument('-v', '--verbose', action='store_true',
                         help='print every transition of every composite ([state] lines) and [status] lines')
     parser.add_argument('--summary-json', metavar='FILE', type=pathlib.Path, default=None,
