@@ -236,6 +236,11 @@ class ListenedPublisher:
             self._looked_for = (count, idle) if known else None
         return self._listened
 
+    def quiet_until(self) -> float:
+        """Until when (``time.monotonic()``) :meth:`publish` would send nothing: no reader listened at
+        the last look, and the next is not due (-inf while one listens)."""
+        return -float('inf') if self._listened else self._checked_at + self.RECHECK_PERIOD
+
     def publish(self, sample: Any, now: float | None = None) -> None:
         """Send ``sample`` if a reader listens (``now``: ``time.monotonic()``, if the caller has it)."""
         if now is None:
@@ -260,6 +265,9 @@ class OutputPort:
         self._sinks: list[InputPort] = []
         self._taps: list[Callable[[str, Any], None]] = []
         self.last: Any = None
+        self._msg_type = spec.msg_type
+        #: Until then no DDS reader listens (:meth:`ListenedPublisher.quiet_until`): a write skips the DDS side.
+        self._quiet_until = -float('inf')
         self._bus.register(self)
 
     def link(self, sink: 'InputPort') -> None:
@@ -292,6 +300,7 @@ class OutputPort:
     def recheck(self) -> None:
         """Look at who listens over DDS before the next send (:meth:`LocalBus.set_idle`)."""
         self._dds.recheck()
+        self._quiet_until = -float('inf')
 
     @property
     def last_message(self) -> Any:
@@ -300,15 +309,18 @@ class OutputPort:
 
     def write(self, sample: Any) -> None:
         """Write a sample (or its ROS message, turned into the sample)."""
-        if type(sample) is self.spec.msg_type:
+        if type(sample) is self._msg_type:
             sample = as_sample(sample)
         self.last = sample
         now = time.monotonic()  # one reading for the sinks' arrival and the DDS side's recheck
+        topic = self.topic
         for sink in self._sinks:
-            sink.deliver(sample, self.topic, now)
+            sink.deliver(sample, topic, now)
         for tap in self._taps:
-            tap(self.topic, sample)
-        self._dds.publish(sample, now)
+            tap(topic, sample)
+        if now > self._quiet_until:  # most outputs have no DDS reader: no call for them
+            self._dds.publish(sample, now)
+            self._quiet_until = self._dds.quiet_until()
 
     def destroy(self) -> None:
         self._bus.unregister(self)
@@ -369,6 +381,7 @@ class InputPort:
         #: later than those of the same tick (at times a tick or more).
         self.remote: set[str] = set()
         self._bus = LocalBus.of(node.context)
+        self._msg_type, self._multiple = spec.msg_type, spec.multiple
         self.latest: Any = None
         #: For ``multiple`` inputs: the newest sample of every source topic.
         self.samples: dict[str, Any] = {}
@@ -425,12 +438,12 @@ class InputPort:
     def deliver(self, msg: Any, topic: str, now: float | None = None) -> None:
         """Take a sample (or its ROS message, turned into the sample) from ``topic``, arrived
         ``now`` (``time.monotonic()``; read here if not given)."""
-        if type(msg) is self.spec.msg_type:
+        if type(msg) is self._msg_type:
             msg = as_sample(msg)
         self.latest = msg
         self.received += 1
         self.received_at = time.monotonic() if now is None else now
-        if self.spec.multiple:
+        if self._multiple:
             self.samples[topic] = msg
         if self._on_sample is not None:
             self._on_sample(msg)

@@ -58,6 +58,8 @@ class Scheduler(Entity):
         #: Called after each tick of the trigger topic (the Composer's coordination between ticks).
         self._after_trigger = after_trigger
         self._items: list[_Item] = []
+        #: What a tick runs, in order: the items switched on (kept in step with them).
+        self._runs: list[Callable[[float], None]] = []
         self._monitors: list[Monitor] = []
         self.active = False
         #: In Safety: each tick makes every entity safe instead of computing.
@@ -114,6 +116,7 @@ class Scheduler(Entity):
             if item.name == name and item.namespace is not None:
                 self._bus.set_idle(item.namespace, False)
         self._items = [i for i in self._items if i.name != name]
+        self._runs = self._switched_on()
         self._monitors = [m for m in self._monitors if m.entity_name != name]
 
     def replace(self, entity: FunctionalEntity) -> None:
@@ -122,6 +125,7 @@ class Scheduler(Entity):
         for k, item in enumerate(self._items):
             if item.name == entity.entity_name:
                 self._items[k] = _Item(item.name, entity.update, entity, item.enabled)
+                self._runs = self._switched_on()
                 return
         raise KeyError(entity.entity_name)
 
@@ -132,8 +136,12 @@ class Scheduler(Entity):
 
     def _enable(self, item: _Item, enabled: bool) -> None:
         item.enabled = enabled
+        self._runs = self._switched_on()
         if item.namespace is not None:  # a child composite in another process: off, it listens to nothing
             self._bus.set_idle(item.namespace, not enabled)
+
+    def _switched_on(self) -> list[Callable[[float], None]]:
+        return [item.run for item in self._items if item.enabled]
 
     @property
     def order(self) -> list[str]:
@@ -244,9 +252,8 @@ class Scheduler(Entity):
         self.ticks += 1
         self._tick_t, self._tick_at = t, time.monotonic()
         try:
-            for item in self._items:
-                if item.enabled:
-                    item.run(t)
+            for run in self._runs:
+                run(t)
             for monitor in self._monitors:
                 monitor.update(t)
         except Exception as err:  # noqa: BLE001 - any fault of a computation leads to Safety
@@ -257,5 +264,6 @@ class Scheduler(Entity):
 
     def destroy_node(self) -> None:
         self._items.clear()
+        self._runs.clear()
         self._monitors.clear()
         super().destroy_node()
