@@ -3,8 +3,9 @@
 One measurement (``--json``): the application runs through the bootstrap, as a user runs it
 (``python -m itasc_bringup.bootstrap APP --rate HZ --duration S``, console, visualization and
 ``--record`` included), in a ROS domain of its own; its summary gives the achieved rate, the tick
-times and when the root reached Running. In the same run, on the same problem (the Tasks active
-in the initial state of its Running sub-FSM):
+times and when the root reached Running, its console whether its thread spun between ticks when
+the run ended (``spinning_at_end``, ``itasc_bringup.between_ticks``). In the same run, on the same
+problem (the Tasks active in the initial state of its Running sub-FSM):
 
 * ``solver_p50_us``: the solver step alone (:class:`fused.FusedProgram`: Scene update, every
   Task's rows and the QP, no entities, ports or messages), timed back to back in a process of its
@@ -133,7 +134,17 @@ def run_app(app: str, *, rate: float, seconds: float, deploy: str = 'single', re
         'bring_up_s': summary.get('up_after'), 'start_to_running_s': running_at[0] if running_at else None,
         'exit_code': summary['exit_code'], 'wall_s': time.monotonic() - began, 'load_before': load,
         'load_after': _load(), **({'recorded_messages': recorded} if recorded is not None else {}),
+        'spinning_at_end': _spinning_at_end(between_ticks, out),
     }
+
+
+def _spinning_at_end(mode: str, console: list[str]) -> bool:
+    """Whether the bootstrap's thread spun between ticks when the run ended (``auto``: what the
+    console said last, ``spinning between ticks: ...`` or ``waiting between ticks: ...``)."""
+    if mode != 'auto':
+        return mode == 'spin'
+    said = [line for line in console if ' between ticks: they take ' in line]
+    return bool(said) and said[-1].lstrip().startswith('spinning')
 
 
 def _recorded_messages(bag: pathlib.Path) -> int:
