@@ -89,3 +89,31 @@ def test_a_long_run_does_not_grow_the_facts_and_keeps_its_figures():
     assert math.isclose(facts.tick_percentile(50), 6e-4, rel_tol=1e-3)
     assert math.isclose(facts.solve_percentile(100), 7e-4, rel_tol=1e-3)
     assert math.isclose(facts.achieved_rate(), 1000.0, rel_tol=1e-6)
+
+
+def test_the_tick_figures_are_those_of_the_ticks_from_running_to_the_stop():
+    """The bring-up and the stop of a large program hold the ticking thread for up to ~0.1 s at a
+    time (50 Tasks at 100 Hz: 92 ticks dropped in an 8 s run, none once Running): the summary's
+    rate, tick times and dropped ticks are those of the run between the root's Running and the stop."""
+    facts = RunFacts(composites={'app': '/app'}, tasks=[])
+    stamps: list[float] = []
+    durations: list[float] = []
+
+    def ticks(first: float, count: int, *, period: float, duration: float) -> None:
+        for k in range(count):
+            stamps.append(first + k * period)
+            durations.append(duration)
+
+    ticks(0.0, 10, period=0.1, duration=0.05)  # the bring-up: late, long ticks
+    facts.on_ticks(stamps, durations, dropped=5)
+    ticks(1.001, 100, period=0.001, duration=0.0002)  # Running, seen before the console knew
+    facts.on_ticks(stamps, durations, dropped=5)
+    facts.count_ticks(since=1.0, dropped=5)
+    ticks(1.101, 900, period=0.001, duration=0.0002)
+    facts.on_ticks(stamps, durations, dropped=5)
+    facts.count_ticks(until=2.0, dropped=5)
+    ticks(2.1, 20, period=0.1, duration=0.08)  # the stop
+    facts.on_ticks(stamps, durations, dropped=40)
+    assert facts.ticks.count == 1000 and facts.dropped_ticks == 0
+    assert math.isclose(facts.achieved_rate(), 1000.0, rel_tol=1e-6)
+    assert math.isclose(facts.tick_percentile(100), 2e-4, rel_tol=1e-9)

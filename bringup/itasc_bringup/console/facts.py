@@ -165,6 +165,10 @@ class RunFacts:
         self.solve_times = Distribution()            # the Solver's solve times (s)
         self._last_tick = -math.inf
         self._tick_span: list[float] = []          # first and last tick (monotonic)
+        #: The ticks that count (monotonic): from the root's Running to the stop (see :meth:`count_ticks`).
+        self._ticks_until = math.inf
+        self._dropped_before = 0
+        self._dropped_until: int | None = None
 
     # -- feeding ------------------------------------------------------------------------------
 
@@ -188,16 +192,29 @@ class RunFacts:
         self.solver_status = msg.status
         self.solve_times.add(msg.solve_time)
 
+    def count_ticks(self, *, since: float | None = None, until: float | None = None, dropped: int) -> None:
+        """The run's tick figures are those of the ticks that start after ``since`` (the root is
+        Running) and not after ``until`` (the stop was commanded), monotonic; ``dropped``: how many
+        ticks the Timer had dropped by then. Ticks counted before ``since`` are forgotten (the
+        Timer's window still holds those after it); the bring-up and the stop of a large program
+        hold the thread for up to ~0.1 s at a time, which is not the rate it runs at."""
+        if since is not None:
+            self.ticks, self._tick_span = Distribution(), []
+            self._last_tick, self._dropped_before = since, dropped
+        if until is not None:
+            self._ticks_until, self._dropped_until = until, dropped
+
     def on_ticks(self, stamps, durations, *, dropped: int = 0) -> None:
         """The Timer's latest ticks (monotonic start, duration; oldest first): those not seen yet
         are kept. Walks back from the newest, so a poll costs what is new. ``dropped``: how many
         ticks the Timer has dropped so far."""
-        self.dropped_ticks = dropped
+        self.dropped_ticks = (dropped if self._dropped_until is None else self._dropped_until) - self._dropped_before
         new = []
         for stamp, duration in zip(reversed(stamps), reversed(durations)):
             if stamp <= self._last_tick:
                 break
-            new.append((stamp, duration))
+            if stamp <= self._ticks_until:
+                new.append((stamp, duration))
         if new:
             new.reverse()
             for _, duration in new:
