@@ -215,12 +215,13 @@ class RunFacts:
                 break
             if stamp <= self._ticks_until:
                 new.append((stamp, duration))
+        if stamps and stamps[-1] > self._last_tick:
+            self._last_tick = stamps[-1]  # seen, counted or not (after the stop)
         if new:
             new.reverse()
             for _, duration in new:
                 self.ticks.add(duration)
                 self.recent_ticks.append(duration)
-            self._last_tick = new[-1][0]
             self._tick_span = [self._tick_span[0] if self._tick_span else new[0][0], new[-1][0]]
 
     # -- what it says -------------------------------------------------------------------------
