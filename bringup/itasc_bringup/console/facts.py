@@ -197,7 +197,7 @@ class RunFacts:
         Running) and not after ``until`` (the stop was commanded), monotonic; ``dropped``: how many
         ticks the Timer had dropped by then. Ticks counted before ``since`` are forgotten (the
         Timer's window still holds those after it); the bring-up and the stop of a large program
-        hold the thread for up to ~0.1 s at a time, which is not the rate it runs at."""
+        hold the thread for 0.1-0.3 s at a time, which is not the rate it runs at."""
         if since is not None:
             self.ticks, self._tick_span = Distribution(), []
             self._last_tick, self._dropped_before = since, dropped
