@@ -236,13 +236,10 @@ class ListenedPublisher:
             self._looked_for = (count, idle) if known else None
         return self._listened
 
-    def quiet_until(self) -> float:
-        """Until when (``time.monotonic()``) :meth:`publish` would send nothing: no reader listened at
-        the last look, and the next is not due (-inf while one listens)."""
-        return -float('inf') if self._listened else self._checked_at + self.RECHECK_PERIOD
-
-    def publish(self, sample: Any, now: float | None = None) -> None:
-        """Send ``sample`` if a reader listens (``now``: ``time.monotonic()``, if the caller has it)."""
+    def publish(self, sample: Any, now: float | None = None) -> float:
+        """Send ``sample`` if a reader listens (``now``: ``time.monotonic()``, if the caller has it).
+        Returns until when (``time.monotonic()``) a publish would send nothing: no reader listened at
+        this look and the next is not due (-inf while one listens)."""
         if now is None:
             now = time.monotonic()
         if now - self._checked_at > self.RECHECK_PERIOD:
@@ -250,6 +247,8 @@ class ListenedPublisher:
             self._listened = self._listening()
         if self._listened:
             self.publisher.publish(serialize(sample))
+            return -float('inf')
+        return self._checked_at + self.RECHECK_PERIOD
 
 
 class OutputPort:
@@ -266,7 +265,7 @@ class OutputPort:
         self._taps: list[Callable[[str, Any], None]] = []
         self.last: Any = None
         self._msg_type = spec.msg_type
-        #: Until then no DDS reader listens (:meth:`ListenedPublisher.quiet_until`): a write skips the DDS side.
+        #: Until then no DDS reader listens (what the DDS side last returned): a write skips it.
         self._quiet_until = -float('inf')
         self._bus.register(self)
 
@@ -319,8 +318,7 @@ class OutputPort:
         for tap in self._taps:
             tap(topic, sample)
         if now > self._quiet_until:  # most outputs have no DDS reader: no call for them
-            self._dds.publish(sample, now)
-            self._quiet_until = self._dds.quiet_until()
+            self._quiet_until = self._dds.publish(sample, now)
 
     def destroy(self) -> None:
         self._bus.unregister(self)
