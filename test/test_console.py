@@ -107,6 +107,9 @@ def test_summary_figures_are_those_of_the_recording(approach):
     # rate and tick times, the recording and how to plot it
     rate = summary['rate']
     assert rate['ticks'] > 500 and 20 < rate['achieved'] <= 110 and 0 < rate['tick_p50'] <= rate['tick_p99']
+    # in one process the Solver steps in every tick: its rate, over the same window, is the ticks'
+    assert rate['solver_hz'] == pytest.approx(rate['achieved'], rel=0.005), rate
+    assert 'the Solver stepped at' not in text
     plot = f'ros2 run itasc_bringup itasc-plot {summary["recording"]}'  # a command that runs: not on PATH
     assert summary['recording'].endswith('run.mcap') and summary['plot_command'] == plot
     assert f'(plot it: {plot})' in text

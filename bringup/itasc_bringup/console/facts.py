@@ -163,6 +163,9 @@ class RunFacts:
         self.recent_ticks: deque = deque(maxlen=RECENT)
         self.dropped_ticks = 0                       # due while the Timer was too far behind to catch up
         self.solve_times = Distribution()            # the Solver's solve times (s)
+        #: Per Solver topic, its steps in the counted window: [count, first t, last t] (program time).
+        self._steps: dict[str, list[float]] = {}
+        self._steps_window = (math.inf, math.inf)   # opened by count_ticks(since=..., origin=...)
         self._last_tick = -math.inf
         self._tick_span: list[float] = []          # first and last tick (monotonic)
         #: The ticks that count (monotonic): from the root's Running to the stop (see :meth:`count_ticks`).
@@ -188,21 +191,36 @@ class RunFacts:
     def on_task(self, task: str, msg) -> None:
         self.tasks[task].add(msg)
 
-    def on_solver(self, msg) -> None:
+    def on_solver(self, msg, *, topic: str = '') -> None:
+        """One step of the Solver publishing on ``topic`` (an ``itasc_msgs/SolverStatus`` sample)."""
         self.solver_status = msg.status
         self.solve_times.add(msg.solve_time)
+        if self._steps_window[0] <= msg.t <= self._steps_window[1]:
+            steps = self._steps.get(topic)
+            if steps is None:
+                self._steps[topic] = [1, msg.t, msg.t]
+            else:  # a sample that came late may be older than the last one
+                steps[0] += 1
+                steps[1], steps[2] = min(steps[1], msg.t), max(steps[2], msg.t)
 
-    def count_ticks(self, *, since: float | None = None, until: float | None = None, dropped: int) -> None:
+    def count_ticks(self, *, since: float | None = None, until: float | None = None, dropped: int,
+                    origin: float | None = None) -> None:
         """The run's tick figures are those of the ticks that start after ``since`` (the root is
         Running) and not after ``until`` (the stop was commanded), monotonic; ``dropped``: how many
         ticks the Timer had dropped by then. Ticks counted before ``since`` are forgotten (the
         Timer's window still holds those after it); the bring-up and the stop of a large program
-        hold the thread for 0.1-0.3 s at a time, which is not the rate it runs at."""
+        hold the thread for 0.1-0.3 s at a time, which is not the rate it runs at. ``origin``: the
+        root Timer's (``time.monotonic()`` at program time 0), so that the Solvers' steps, stamped
+        with the tick's program time wherever they ran, are counted over the same window."""
         if since is not None:
             self.ticks, self._tick_span = Distribution(), []
             self._last_tick, self._dropped_before = since, dropped
+            if origin is not None:
+                self._steps, self._steps_window = {}, (since - origin, math.inf)
         if until is not None:
             self._ticks_until, self._dropped_until = until, dropped
+            if origin is not None:
+                self._steps_window = (self._steps_window[0], until - origin)
 
     def on_ticks(self, stamps, durations, *, dropped: int = 0) -> None:
         """The Timer's latest ticks (monotonic start, duration; oldest first): those not seen yet
@@ -244,6 +262,13 @@ class RunFacts:
         n = self.ticks.count
         span = self._tick_span[1] - self._tick_span[0] if self._tick_span else 0.0
         return (n - 1) / span if n > 1 and span > 0 else 0.0
+
+    def solver_rate(self) -> float | None:
+        """The Solver's steps a second over the counted window (of several Solvers, the slowest):
+        with ``--deploy per-composite``, how often the program's own process computed. None before
+        two steps."""
+        rates = [(n - 1) / (last - first) for n, first, last in self._steps.values() if n > 1 and last > first]
+        return min(rates) if rates else None
 
     def tick_percentile(self, q: float) -> float | None:
         """The ``q``-th percentile of the tick times (s), nearest rank; None without ticks."""

@@ -19,6 +19,10 @@ from .facts import RunFacts
 
 __all__ = ['build_summary', 'summary_lines', 'write_summary_json']
 
+#: The rate line names the Solver's own rate when it stepped less often than this share of the
+#: ticks (``--deploy per-composite``: its process missed triggers).
+SLOWER = 0.99
+
 
 def _finite(value: float | None) -> float | None:
     return value if value is not None and math.isfinite(value) else None
@@ -54,7 +58,8 @@ def build_summary(facts: RunFacts, *, app: str, how: str, exit_code: int, safety
         'tasks': tasks,
         'rate': {'target': target_rate, 'achieved': facts.achieved_rate(),
                  'tick_p50': p50, 'tick_p99': p99, 'ticks': facts.ticks.count, 'dropped': facts.dropped_ticks,
-                 'solve_p50': facts.solve_percentile(50), 'solves': facts.solve_times.count},
+                 'solve_p50': facts.solve_percentile(50), 'solves': facts.solve_times.count,
+                 'solver_hz': facts.solver_rate()},
         'solver_status': facts.solver_status or None,
         'recording': recording,
         'plot_command': f'ros2 run itasc_bringup itasc-plot {recording}' if recording else None,
@@ -89,9 +94,12 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
             what = f'final error {_num(task["final_error"])}, {converged}' if task['ticks'] else 'never active'
         lines.append(f'  {"tasks" if i == 0 else "":<6} {task["task"]:<{width}}  {what}')
     rate = summary['rate']
+    solver_hz = rate.get('solver_hz')
     lines.append(f'  {"rate":<6} {rate["achieved"]:.1f} Hz (target {rate["target"]:g}), '
                  f'tick p50 {_ms(rate["tick_p50"])}, p99 {_ms(rate["tick_p99"])}, solver p50 {_ms(rate["solve_p50"])}'
-                 + (f', {rate["dropped"]} ticks dropped (the Timer was too far behind)' if rate['dropped'] else ''))
+                 + (f', {rate["dropped"]} ticks dropped (the Timer was too far behind)' if rate['dropped'] else '')
+                 + (f', the Solver stepped at {solver_hz:.1f} Hz' if solver_hz and solver_hz < SLOWER * rate['achieved']
+                    else ''))
     if summary['up_after'] is not None:
         process = summary.get('process_up_after')
         lines.append(f'  {"up":<6} Running {summary["up_after"]:.2f} s after the bring-up began'

@@ -42,13 +42,14 @@ class Watch:
         self.observer = Observer(node)
         # A tapped sample arrives in the tick that wrote it: it is only kept there, and goes into
         # the facts at the next poll, between ticks (issue #9: ~3 % of a 1 kHz tick otherwise).
-        pending: deque[tuple[str | None, Any]] = deque()  # (Task, TaskState) or (None, SolverStatus)
+        pending: deque[tuple[str | None, str, Any]] = deque()  # (Task, topic, TaskState) or (None, topic, SolverStatus)
         self._pending = pending
         for name, trace in facts.tasks.items():
             self.observer.samples(trace.spec.topic, TaskState,
-                                  lambda _, sample, name=name: pending.append((name, sample)), qos=WATCH_QOS)
+                                  lambda topic, sample, name=name: pending.append((name, topic, sample)), qos=WATCH_QOS)
         for topic in solver_topics:
-            self.observer.samples(topic, SolverStatus, lambda _, sample: pending.append((None, sample)), qos=WATCH_QOS)
+            self.observer.samples(topic, SolverStatus, lambda topic, sample: pending.append((None, topic, sample)),
+                                  qos=WATCH_QOS)
 
     def _on_state(self, msg: CoordinatorState) -> None:
         self._on_transition(self.facts.on_state(msg))
@@ -58,9 +59,9 @@ class Watch:
         Timer's latest tick times (its window is bounded: poll it often)."""
         facts, pending = self.facts, self._pending
         while pending:
-            task, sample = pending.popleft()
+            task, topic, sample = pending.popleft()
             if task is None:
-                facts.on_solver(sample)
+                facts.on_solver(sample, topic=topic)
             else:
                 facts.on_task(task, sample)
         if timer is not None:

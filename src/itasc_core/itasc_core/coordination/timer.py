@@ -79,19 +79,20 @@ class Timer(Entity):
         #: Ticks run, and ticks dropped (due while the Timer was more than ``catch_up`` periods behind).
         self.ticked = 0
         self.dropped = 0
-        self._t0 = time.monotonic()
+        #: ``time.monotonic()`` at program time 0: a tick that starts at ``m`` ticks ``t = m - origin``.
+        self.origin = time.monotonic()
         # The steady clock, the one time.monotonic reads: the schedule is counted on it.
         self._timer = self.create_timer(1.0 / rate, self.run_due, clock=Clock(clock_type=ClockType.STEADY_TIME))
         _ask_switch_interval(id(self), max(MIN_SWITCH_INTERVAL, SWITCH_SHARE / rate))
 
     def _due(self) -> int:
         """How many ticks were due by now."""
-        return int((time.monotonic() - self._t0) * self.rate)
+        return int((time.monotonic() - self.origin) * self.rate)
 
     @property
     def next_due(self) -> float:
         """When the next tick is due (``time.monotonic()``)."""
-        return self._t0 + (self.ticked + 1) / self.rate
+        return self.origin + (self.ticked + 1) / self.rate
 
     def run_due(self) -> None:
         """Run the ticks due by now (the ROS timer's callback; a thread that spins between ticks
@@ -112,7 +113,7 @@ class Timer(Entity):
     def _tick(self) -> None:
         self.ticked += 1
         start = time.monotonic()
-        self._scheduler.tick(start - self._t0)
+        self._scheduler.tick(start - self.origin)
         if self._after_tick is not None:
             self._after_tick()
         if self._scheduler.active:
