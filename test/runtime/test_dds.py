@@ -4,6 +4,7 @@ memory that a killed process could leave locked, and discovery still works betwe
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 import textwrap
 import time
@@ -86,3 +87,54 @@ def test_the_ros_domain_id_is_read_as_rcl_reads_it_or_refused_by_name(monkeypatc
             domain_id()
     else:
         assert domain_id() == expected
+
+
+_SENDER = textwrap.dedent('''
+    import os, sys, time
+    from itasc_core.communication.dds import configure_dds, send_from_a_dds_thread
+    configure_dds()
+    send_from_a_dds_thread()
+    import rclpy
+    from std_msgs.msg import Float64MultiArray
+    rclpy.init()
+    node = rclpy.create_node('sender')
+    pub = node.create_publisher(Float64MultiArray, '/dds_test/samples', 10)
+    node.create_subscription(Float64MultiArray, '/dds_test/samples', lambda _: None, 10)  # a reader
+    end = time.monotonic() + 20
+    while pub.get_subscription_count() < 1 and time.monotonic() < end:
+        time.sleep(0.01)
+    time.sleep(0.5)
+
+    def cpu(names):
+        total = 0
+        for task in os.listdir('/proc/self/task'):
+            with open(f'/proc/self/task/{task}/comm') as comm:
+                if comm.read().startswith(names):
+                    with open(f'/proc/self/task/{task}/stat') as stat:
+                        total += sum(int(v) for v in stat.read().rsplit(')', 1)[1].split()[11:13])
+        return total
+    before = cpu('dds.asyn')
+    msg = Float64MultiArray(data=[0.5] * 2000)
+    for _ in range(5000):
+        pub.publish(msg)
+    time.sleep(0.5)
+    print(os.environ['RMW_FASTRTPS_PUBLICATION_MODE'], cpu('dds.asyn') - before, flush=True)
+''')
+
+
+@pytest.mark.parametrize('chosen', [None, 'SYNCHRONOUS'])
+def test_a_composite_process_sends_from_a_dds_thread_unless_the_user_chose(chosen):
+    """``--deploy per-composite``: a composite process's tick hands its samples to a Fast DDS
+    thread that sends them (the ``sendto`` was 44 % of the program's tick at 500 Hz), unless
+    ``RMW_FASTRTPS_PUBLICATION_MODE`` says otherwise."""
+    env = {k: v for k, v in os.environ.items() if k != 'RMW_FASTRTPS_PUBLICATION_MODE'}
+    if chosen:
+        env['RMW_FASTRTPS_PUBLICATION_MODE'] = chosen
+    out = subprocess.run([sys.executable, '-c', _SENDER], capture_output=True, text=True, env=env, timeout=60,
+                         check=True).stdout.split()
+    mode, sending_ticks = out[-2], int(out[-1])  # clock ticks (1/100 s) the DDS sending threads ran
+    assert mode == (chosen or 'ASYNCHRONOUS')
+    if chosen:
+        assert sending_ticks == 0, out
+    else:
+        assert sending_ticks > 0, out  # 5000 samples of 16 kB: ~0.1-0.3 s of sending

@@ -25,7 +25,7 @@ from typing import Callable
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
-from ..communication.dds import configure_dds
+from ..communication.dds import configure_dds, send_from_a_dds_thread
 from ..entity import CompositeContext
 from .composer import bring_up
 from .deployment import Runtime, make_executor, end_process_within
@@ -61,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     context = CompositeContext(name=model.name, namespace=args.namespace, parent_namespace=args.parent_namespace)
 
     configure_dds()
+    send_from_a_dds_thread()
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # `kill -USR1 <pid>`: where is it stuck?
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, signal.SIG_IGN)
