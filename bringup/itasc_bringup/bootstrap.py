@@ -213,18 +213,12 @@ def main(argv: list[str] | None = None) -> int:
         from .console import Waits
         waits = Waits(model)
 
-        def dropped() -> int:
-            return composer.timer.dropped if composer is not None and composer.timer is not None else 0
-
-        def origin() -> float | None:
-            return composer.timer.origin if composer is not None and composer.timer is not None else None
-
         def running() -> None:
             """The root is Running: the run's time and ticks count, the display joins."""
             nonlocal running_since
             if running_since is None:
                 running_since = time.monotonic()
-                facts.count_ticks(since=running_since, dropped=dropped(), origin=origin())
+                watch.count(composer.timer if composer is not None else None, since=running_since)
                 visualization.join()
 
         def on_transition(transition) -> None:
@@ -295,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
                         or time.monotonic() - stop_due_at > DISCOVERY_TIMEOUT:
                     raiser.raise_event(event(root.name, STOP))
                     stop_sent_at = last_stop = time.monotonic()
-                    facts.count_ticks(until=stop_sent_at, dropped=dropped(), origin=origin())
+                    watch.count(composer.timer, until=stop_sent_at)
                     since = running_since  # a local: the console's lambdas read running_since too
                     ran_for = time.monotonic() - since if since is not None else None
             elif stop_sent_at is not None and state == 'Safety' and time.monotonic() - (last_stop or 0.0) > 0.5:

@@ -66,3 +66,10 @@ class Watch:
                 facts.on_task(task, sample)
         if timer is not None:
             facts.on_ticks(timer.stamps, timer.durations, dropped=timer.dropped)
+
+    def count(self, timer, *, since: float | None = None, until: float | None = None) -> None:
+        """The run's figures count from ``since`` (the root is Running) to ``until`` (the stop was
+        commanded), ``time.monotonic()``, by the root ``timer``'s dropped ticks and program time
+        (:meth:`~.facts.RunFacts.count_ticks`)."""
+        self.facts.count_ticks(since=since, until=until, dropped=timer.dropped if timer is not None else 0,
+                               origin=timer.origin if timer is not None else None)
