@@ -36,6 +36,7 @@ def instrument(composer: Any, costs: dict[str, list[float]], prefix: str = '') -
     scheduler = composer.scheduler
     for item in scheduler._items:
         item.run = _timed(item.run, costs[prefix + item.name])
+    scheduler._runs = scheduler._switched_on()  # what a tick runs: the timed ones
     for monitor in scheduler._monitors:
         monitor.update = _timed(monitor.update, costs[f'{prefix}monitor {monitor.entity_name}'])
     for name, child in composer.children.items():

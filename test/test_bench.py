@@ -53,3 +53,22 @@ def test_a_composition_model_has_figures_of_its_own_and_no_baseline():
     assert figures['exit_code'] == 0 and figures['achieved_hz'] > 100, figures
     assert figures['solver_p50_us'] is None and figures['handwritten_p50_us'] is None, figures
     assert 'composition model' in figures['baseline'], figures
+
+
+def test_where_a_tick_goes_times_every_entity_that_ran():
+    """``bench/bench_entities.py`` times each scheduled entity inside the application's ticks. A
+    Scheduler runs a list of what is switched on that it keeps in step with its items; the benchmark
+    wrapped the items only, so nothing it timed ever ran and every entity was listed as switched off."""
+    script = Path(__file__).resolve().parents[1] / 'bench' / 'bench_entities.py'
+    result = subprocess.run([sys.executable, str(script), '--rate', '200', '--seconds', '2'],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-5000:]
+    timed = {}
+    for line in result.stdout.split('in the application')[1].split('the plain computation')[0].splitlines():
+        parts = line.split(maxsplit=1)
+        if len(parts) == 2 and parts[0].replace('.', '', 1).isdigit():
+            timed[parts[1]] = float(parts[0])
+    assert {'itasc/Solver', 'itasc/Scene', 'itasc/ApproachObject/VKC'} <= set(timed), result.stdout
+    assert timed['itasc'] > timed['itasc/Solver'] > 0, result.stdout  # a composite includes its children
+    switched_off = result.stdout.split('(not run: switched off)')[-1] if 'not run' in result.stdout else ''
+    assert 'itasc/Solver' not in switched_off, result.stdout
