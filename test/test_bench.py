@@ -70,5 +70,3 @@ def test_where_a_tick_goes_times_every_entity_that_ran():
             timed[parts[1]] = float(parts[0])
     assert {'itasc/Solver', 'itasc/Scene', 'itasc/ApproachObject/VKC'} <= set(timed), result.stdout
     assert timed['itasc'] > timed['itasc/Solver'] > 0, result.stdout  # a composite includes its children
-    switched_off = result.stdout.split('(not run: switched off)')[-1] if 'not run' in result.stdout else ''
-    assert 'itasc/Solver' not in switched_off, result.stdout
