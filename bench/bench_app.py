@@ -69,6 +69,17 @@ def _root_name(app: str) -> str:
     return load_composition(app).name
 
 
+def model_error(app: str) -> str | None:
+    """What is wrong with the model ``app`` names, as the bootstrap says it (one line), or None: a
+    benchmark refuses a wrong model before it starts anything, as the bootstrap does."""
+    from itasc_core.composition.loader import ModelError
+    try:
+        _root_name(app)
+    except ModelError as err:
+        return f'error: {err}'
+    return None
+
+
 def application(app: str):
     """The checked application model of ``app`` (``load_application``), or None for a composition
     model (``composite:``), which has no constraint-based program."""
@@ -323,7 +334,7 @@ def _line(what: str, r: dict) -> str:
             f"{r['start_to_running_s'] or float('nan'):.2f} s){extra}, load {r['load_before']:.1f}")
 
 
-def main() -> None:
+def main() -> int:
     from itasc_bringup.between_ticks import MODES
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--app', default='approach_object')
@@ -340,13 +351,18 @@ def main() -> None:
     parser.add_argument('--json', action='store_true', help='one measurement, printed as one JSON object')
     parser.add_argument('--out', type=pathlib.Path, default=HERE, help='where the report goes (default: bench/)')
     args = parser.parse_args()
+    error = model_error(args.app)
+    if error is not None:
+        print(error, file=sys.stderr)
+        return 2
     if not args.json:
         report(args)
-        return
+        return 0
     result = measure(args.app, rate=args.rate, seconds=args.seconds, deploy=args.deploy, record=args.record,
                      between_ticks=args.between_ticks, stand_ins=args.drivers == 'stand-in')
     print(json.dumps(result))
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

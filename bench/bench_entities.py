@@ -17,6 +17,7 @@ import argparse
 import os
 import platform
 import statistics
+import sys
 import time
 from collections import defaultdict
 from typing import Any, Callable
@@ -81,6 +82,11 @@ def main() -> int:
     parser.add_argument('--seconds', type=float, default=8.0)
     args = parser.parse_args()
     os.environ.setdefault('ROS_DOMAIN_ID', str(102 + os.getpid() % 100))
+    from bench_app import model_error
+    error = model_error(args.app)
+    if error is not None:
+        print(error, file=sys.stderr)
+        return 2
 
     from inprocess import run_application, spin_for
     from itasc_bringup.apps import load_composition

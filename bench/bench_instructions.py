@@ -40,7 +40,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from bench_app import _domain  # noqa: E402 - the benchmarks' ROS domain (ITASC_BENCH_DOMAIN)
+from bench_app import _domain, model_error  # noqa: E402 - the benchmarks' ROS domain (ITASC_BENCH_DOMAIN)
 
 #: Ticks run before counting (the first ones build caches and specialise the interpreter).
 WARM_UP = 100
@@ -117,6 +117,10 @@ def main() -> int:
         _count_ticks(args.app, ticks=args.ticks, rate=args.rate)
     elif args.child == 'solver':
         _count_solver(args.app, ticks=args.ticks, rate=args.rate)
+    error = model_error(args.app)
+    if error is not None:
+        print(error, file=sys.stderr)
+        return 2
     if shutil.which('valgrind') is None:
         print('bench_instructions: valgrind not found, skipped (apt install valgrind)')
         return 0

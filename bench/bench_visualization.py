@@ -158,6 +158,11 @@ def main() -> None:
         print('RESULT ' + json.dumps(result), flush=True)
         os._exit(0)  # no lingering DDS teardown in the figures of the next run
 
+    from bench_app import model_error
+    error = model_error(args.app)
+    if error is not None:
+        print(error, file=sys.stderr)
+        raise SystemExit(2)
     cpu = next((line.split(':', 1)[1].strip() for line in open('/proc/cpuinfo') if line.startswith('model name')),
                platform.processor())
     load = os.getloadavg()[0]

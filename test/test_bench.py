@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from model_files import two_arms
 
 BENCH_APP = [sys.executable, str(Path(__file__).resolve().parents[1] / 'bench' / 'bench_app.py')]
@@ -70,3 +72,18 @@ def test_where_a_tick_goes_times_every_entity_that_ran():
             timed[parts[1]] = float(parts[0])
     assert {'itasc/Solver', 'itasc/Scene', 'itasc/ApproachObject/VKC'} <= set(timed), result.stdout
     assert timed['itasc'] > timed['itasc/Solver'] > 0, result.stdout  # a composite includes its children
+
+
+@pytest.mark.parametrize('script', ['bench_app.py', 'bench_entities.py', 'bench_instructions.py',
+                                    'bench_visualization.py'])
+def test_a_wrong_model_is_refused_in_one_line_before_anything_runs(tmp_path, script):
+    """A benchmark of a model that is wrong says what the bootstrap says (the file, the field) and
+    exits 2. Before, it ended in a ModelError traceback (exit 1), or went on to measure."""
+    model = tmp_path / 'wrong.yaml'
+    model.write_text('application:\n  nme: wrong\n')
+    path = Path(__file__).resolve().parents[1] / 'bench' / script
+    result = subprocess.run([sys.executable, str(path), '--app', str(model)], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 2, result.stdout[-3000:] + result.stderr[-5000:]
+    assert result.stderr.strip() == f'error: {model}: application.name: required field is missing', result.stderr
+    assert result.stdout == '', result.stdout
