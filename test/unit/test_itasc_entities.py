@@ -27,6 +27,7 @@ from itasc_core.communication.events import EventListener
 from itasc_core.communication.ports import LocalBus
 from itasc_core.configuration import Configurator
 from itasc_core.entity import CompositeContext
+from itasc_core.finite import all_finite
 from itasc_core.itasc import Robot
 from itasc_core.itasc.entities import RobotEntity, SceneEntity, SolverEntity
 from itasc_core.communication.cdr import serialize
@@ -573,6 +574,42 @@ def test_ros2_control_adapter_integrates_positions_for_a_position_controller(wor
         adapter.update(k * 0.1)
     assert world.spin_until(lambda: len(received) == 3)
     assert received[-1].data[0] == pytest.approx(PANDA_READY[0] + 0.2)
+
+
+@pytest.mark.parametrize('interface', ['position', 'trajectory'])
+def test_ros2_control_adapter_never_commands_a_position_the_driver_measured_as_nan(world, interface):
+    """A driver reporting a non-finite joint position: the adapter hands it on (the watchdog puts
+    the program in Safety), and in Safety holds each joint at its last finite position. Before,
+    every hold command of a position or trajectory controller carried the NaN, tick after tick;
+    and none is sent before every joint had a finite position."""
+    from trajectory_msgs.msg import JointTrajectory
+    ns = world.ctx.namespace
+    topic = f'{ns}/controller/{"commands" if interface == "position" else "joint_trajectory"}'
+    received: list = []
+    world.observer.create_subscription(Float64MultiArray if interface == 'position' else JointTrajectory, topic,
+                                       received.append, 10)
+    adapter = world.entity(Ros2ControlAdapter, 'Driver_panda', robot='panda', joints=PANDA, interface=interface,
+                           joint_states_topic=f'{ns}/joint_states', command_topic=topic)
+    assert world.spin_until(lambda: adapter._publisher.get_subscription_count() > 0)
+
+    def positions(message) -> list[float]:
+        return list(message.data if interface == 'position' else message.points[0].positions)
+    broken = [math.nan] + PANDA_READY[1:]
+    adapter._on_state(JointState(name=PANDA, position=broken))  # never a finite position of joint 1
+    adapter.safe()
+    adapter.update(0.0)
+    world.spin_until(lambda: received, timeout=0.5)
+    assert received == [] and not all_finite(adapter.outputs['joint_state'].last.position)
+
+    adapter._on_state(JointState(name=PANDA, position=PANDA_READY))
+    adapter.update(0.01)
+    assert world.spin_until(lambda: len(received) == 1)
+    for k in range(3):  # the driver's joint 1 goes NaN; Safety follows, every tick holds the robot
+        adapter._on_state(JointState(name=PANDA, position=broken))
+        adapter.safe()
+    assert world.spin_until(lambda: len(received) == 4)
+    assert not all_finite(adapter.outputs['joint_state'].last.position)  # reported as measured
+    assert [positions(m) for m in received[1:]] == [pytest.approx(PANDA_READY)] * 3, received
 
 
 def test_an_entity_refuses_invalid_parameters_at_construction(world):

@@ -22,6 +22,11 @@ then finds the driver silent).
 On disengage and in Safety it commands zero velocity (velocity) or holds the measured position.
 In Safety it keeps reporting what the driver measures (as a simulated robot does), so that the
 watchdog Monitors can tell whether a silent driver came back before a recovery.
+
+What it reports is what the driver measured, a non-finite position too (the watchdog's
+``nonfinite`` Monitor puts the program in Safety); what it commands never is: a position or
+trajectory command starts from each joint's last finite position, and none is sent before every
+joint had one.
 """
 
 from __future__ import annotations
@@ -90,6 +95,8 @@ class Ros2ControlAdapter(FunctionalEntity):
         self.let_go(self._state_sub, kept=state_sub)
         if state_sub is not self._state_sub:
             self.measured: np.ndarray | None = None
+            #: Each joint's last finite measured position (None until every joint had one).
+            self.held: np.ndarray | None = None
             self._fresh = False
             self._missing_reported = False
         self._state_sub, self._publisher = state_sub, publisher
@@ -101,8 +108,13 @@ class Ros2ControlAdapter(FunctionalEntity):
     def _on_state(self, msg: JointState) -> None:
         by_name = dict(zip(msg.name, msg.position))
         if all(j in by_name for j in self.joints):
-            self.measured = np.array([by_name[j] for j in self.joints], dtype=float)
+            self.measured = measured = np.array([by_name[j] for j in self.joints], dtype=float)
             self._fresh = True
+            finite = np.isfinite(measured)
+            if finite.all():
+                self.held = measured
+            elif self.held is not None:
+                self.held = np.where(finite, measured, self.held)
         elif not self._missing_reported:
             self._missing_reported = True
             missing = ', '.join(j for j in self.joints if j not in by_name)
@@ -132,15 +144,16 @@ class Ros2ControlAdapter(FunctionalEntity):
         if self.interface == 'velocity':
             self._publisher.publish(Float64MultiArray(data=velocity.tolist()))
             return
+        if self.held is None:
+            return  # no position to start from: the controller holds its last command
         if self._target is None or not velocity.any():
-            self._target = self.measured.copy()
+            self._target = self.held.copy()
         if self.interface == 'position':
             self._target = self._target + velocity * dt
             self._publisher.publish(Float64MultiArray(data=self._target.tolist()))
             return
         seconds = int(self.horizon)
-        measured = self.measured if self.measured is not None else np.zeros(len(self.joints))  # sent once reported
-        point = JointTrajectoryPoint(positions=(measured + velocity * self.horizon).tolist(),
+        point = JointTrajectoryPoint(positions=(self.held + velocity * self.horizon).tolist(),
                                      velocities=velocity.tolist(),
                                      time_from_start=Duration(sec=seconds, nanosec=int((self.horizon - seconds) * 1e9)))
         self._publisher.publish(JointTrajectory(joint_names=self.joints, points=[point]))
