@@ -262,6 +262,74 @@ def test_a_simulated_drivers_limits_take_effect_while_it_runs():
         rclpy.try_shutdown()
 
 
+def test_limits_that_would_move_the_simulated_robot_by_themselves_are_refused():
+    """A velocity limit of 0 or below, lower above upper, or limits the robot stands outside while
+    it runs: each was accepted, and the next tick moved the robot whatever the Solver commanded
+    (-0.5 rad/s on every joint; a jump to the upper limits in one tick). Refused with the reason,
+    the robot where it was."""
+    from itasc_core.communication.samples import JointSample
+    from itasc_drivers.simulated_robot import SimulatedRobot
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    driver = SimulatedRobot('Driver_panda', composite=CompositeContext(name='itasc', namespace='/changes/itasc'),
+                            parameters=_approach_object_parameters()['Driver_panda'])
+    try:
+        joints = driver.robot.joint_names
+        n, start = len(joints), driver.robot.positions.copy()
+        where = dict(zip(joints, start))
+        driver.inputs['command'].deliver(JointSample(0.0, tuple(joints), start, velocity=np.zeros(n)), 'test')
+        limits = 'every velocity limit must be finite and > 0 (a limit of 0 or below would move the joint ' \
+                 'whatever is commanded, or never)'
+        for name, value, reason in [
+                ('velocity_limit', [-0.5] * n, f'velocity_limit: Value error, {limits}'),
+                ('velocity_limit', [0.0] * n, f'velocity_limit: Value error, {limits}'),
+                ('lower', [5.0] * n, 'ValueError: lower is above upper for ' + ', '.join(
+                    j for j, hi in zip(joints, driver.robot.upper) if hi < 5.0)),
+                ('upper', list(start - 0.1), 'ValueError: the robot is outside the new limits: ' + ', '.join(
+                    f'{j} at {where[j]:.4g} (limits [{lo:.4g}, {where[j] - 0.1:.4g}])'
+                    for j, lo in zip(joints, driver.robot.lower)))]:
+            (result,) = driver.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (False, reason), name
+        driver.update(0.0)
+        driver.update(0.1)
+        assert driver.robot.positions == pytest.approx(start)  # commanded still: still
+    finally:
+        driver.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_what_a_tasks_constraint_is_is_read_only_and_its_bounds_are_ordered():
+    """``CC.inequality`` set while running turned a 6-D equality Task into bounds of ±inf: the Task
+    constrained nothing, its error read 0 and its ``converged`` Monitor fired without the robot
+    moving. Read-only now (another constraint is another Task); bounds with lower above upper,
+    and Rows weights that are neither one nor one per row (a traceback and Safety at the next
+    tick), are refused."""
+    from itasc_core.itasc.entities.messages import FeaturesSample
+    from itasc_tasks.entities import ConstraintRowsEntity
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    cc = ConstraintControllerEntity('CC', composite=TASK, parameters={'task': 'T', 'inequality': True,
+                                                                      'lower': [0.0], 'upper': [1.0]})
+    rows = ConstraintRowsEntity('Rows', composite=TASK, parameters={'task': 'T', 'weights': [1.0]})
+    try:
+        for name, value, reason in [
+                ('inequality', False, 'Trying to set a read-only parameter: inequality.'),
+                ('lower', [2.0], 'parameters: Value error, lower is above upper (output 0)')]:
+            (result,) = cc.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (False, reason), name
+        assert cc.inequality and list(cc.lower) == [0.0]
+        rows.inputs['output'].deliver(FeaturesSample(0.0, tuple('xyzabc'), ('j1',), np.zeros(6), np.zeros((6, 1))),
+                                      'test')
+        (result,) = rows.set_parameters([Parameter('weights', value=[1.0, 2.0])])
+        assert (result.successful, result.reason) == (
+            False, 'ValueError: weights has 2 values for the 6 rows of task T (x, y, z, a, b, c): give one, or '
+                   'one per row')
+        (result,) = rows.set_parameters([Parameter('weights', value=[1.0, 2.0, 3.0, 4.0, 5.0, 6.0])])
+        assert result.successful, result.reason
+    finally:
+        cc.destroy_node()
+        rows.destroy_node()
+        rclpy.try_shutdown()
+
+
 def test_a_ros2_control_adapter_changes_topics_without_losing_the_old_ones_or_what_it_measured():
     """A topic name rclpy refuses leaves the adapter on its topics (before, it had destroyed them
     first and could not go back: Safety); a new command topic keeps what the driver measured,

@@ -16,13 +16,14 @@ takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)`
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 import rclpy
-from pydantic import Field
+from pydantic import Field, field_validator
 from rclpy.executors import ExternalShutdownException
 
 from itasc_core.communication.dds import configure_dds
@@ -59,7 +60,15 @@ class SimulatedRobot(FunctionalEntity):
         upper: list[float] = Field(default_factory=list)
         """Highest position per joint; none: the URDF's."""
         velocity_limit: list[float] = Field(default_factory=list)
-        """Largest speed per joint; none: the URDF's."""
+        """Largest speed per joint (> 0); none: the URDF's."""
+
+        @field_validator('velocity_limit')
+        @classmethod
+        def _positive(cls, value: list[float]) -> list[float]:
+            if not all(0.0 < v < math.inf for v in value):
+                raise ValueError('every velocity limit must be finite and > 0 (a limit of 0 or below would '
+                                 'move the joint whatever is commanded, or never)')
+            return value
 
     @classmethod
     def port_specs(cls, params: Parameters) -> list[PortSpec]:
@@ -79,6 +88,7 @@ class SimulatedRobot(FunctionalEntity):
             if given and len(given) != len(urdf):
                 raise ValueError(f'{key} has {len(given)} values for the {len(urdf)} joints of {params.robot}')
             limits[key] = np.array(given, dtype=float) if given else urdf
+        self._check_limits(robot, limits, moving=not first)
         for key, values in limits.items():
             getattr(robot, key)[:] = values
         self._lowest_velocity = -robot.velocity_limit
@@ -97,6 +107,20 @@ class SimulatedRobot(FunctionalEntity):
         spec = next(s for s in self.port_specs(params) if s.name == 'joint_state')
         self._joint_states = OutputPort(self, replace(spec, name='joint_states').with_id(
             f"{self.composite.namespace.rstrip('/')}/{params.robot}/joint_states"))
+
+    @staticmethod
+    def _check_limits(robot: Robot, limits: dict[str, np.ndarray], *, moving: bool) -> None:
+        """Limits that contradict each other, or, while it runs, that leave a joint where it is
+        outside (the robot would jump to the limit in one tick), are refused."""
+        names = robot.joint_names
+        crossed = [n for n, lo, hi in zip(names, limits['lower'], limits['upper']) if lo > hi]
+        if crossed:
+            raise ValueError(f'lower is above upper for {", ".join(crossed)}')
+        if moving:
+            outside = [f'{n} at {q:.4g} (limits [{lo:.4g}, {hi:.4g}])' for n, q, lo, hi
+                       in zip(names, robot.positions, limits['lower'], limits['upper']) if not lo <= q <= hi]
+            if outside:
+                raise ValueError(f'the robot is outside the new limits: {", ".join(outside)}')
 
     def _within_limits(self, positions: np.ndarray) -> np.ndarray:
         return np.minimum(np.maximum(positions, self.robot.lower), self.robot.upper)

@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from itasc_core.communication.ports import PortSpec
 from itasc_core.computation.functional_entity import FunctionalEntity
@@ -52,12 +52,21 @@ class ConstraintControllerEntity(FunctionalEntity):
         """The Task it belongs to."""
         tick_period: float = Field(default=0.01, gt=0)
         """The program's nominal tick period [s]."""
-        inequality: bool = False
-        """Bounds on the output (``lower``/``upper``) instead of a setpoint."""
+        inequality: bool = Field(default=False, frozen=True)
+        """Bounds on the output (``lower``/``upper``) instead of a setpoint (what the Task is: fixed)."""
         lower: list[float] = Field(default_factory=lambda: [-math.inf])
         """Inequality: lower bound on the output, one value or one per output."""
         upper: list[float] = Field(default_factory=lambda: [math.inf])
         """Inequality: upper bound on the output, one value or one per output."""
+
+        @model_validator(mode='after')
+        def _bounds(self) -> 'ConstraintControllerEntity.Parameters':
+            lower, upper = np.asarray(self.lower, dtype=float), np.asarray(self.upper, dtype=float)
+            if lower.size == upper.size or 1 in (lower.size, upper.size):
+                crossed = np.flatnonzero(np.broadcast_to(lower > upper, (max(lower.size, upper.size),)))
+                if crossed.size:
+                    raise ValueError(f'lower is above upper (output {", ".join(map(str, crossed))})')
+            return self
 
     @classmethod
     def parameter_model(cls, values: Mapping[str, Any]) -> type[ParameterModel]:

@@ -61,6 +61,10 @@ class ConstraintRowsEntity(FunctionalEntity):
         ]
 
     def configure(self, params: Parameters) -> None:
+        output = self.inputs['output'].latest  # the rows it writes now (None before the first)
+        if output is not None and len(params.weights) not in (1, len(output.names)):
+            raise ValueError(f'weights has {len(params.weights)} values for the {len(output.names)} rows of '
+                             f'task {params.task} ({", ".join(output.names)}): give one, or one per row')
         self.task, self.priority = params.task, params.priority
         self.weights = np.asarray(params.weights, dtype=float)
         self.inequality = params.inequality
