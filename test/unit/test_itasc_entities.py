@@ -604,7 +604,7 @@ def test_ros2_control_adapter_never_commands_a_position_the_driver_measured_as_n
     adapter._on_state(JointState(name=PANDA, position=PANDA_READY))
     adapter.update(0.01)
     assert world.spin_until(lambda: len(received) == 1)
-    for k in range(3):  # the driver's joint 1 goes NaN; Safety follows, every tick holds the robot
+    for _ in range(3):  # the driver's joint 1 goes NaN; Safety follows, every tick holds the robot
         adapter._on_state(JointState(name=PANDA, position=broken))
         adapter.safe()
     assert world.spin_until(lambda: len(received) == 4)
