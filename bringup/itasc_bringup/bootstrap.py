@@ -27,6 +27,7 @@ import argparse
 import contextlib
 import faulthandler
 import io
+import math
 import os
 import pathlib
 import signal
@@ -93,10 +94,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     import argcomplete
     argcomplete.autocomplete(parser)
     args = parser.parse_args(argv)
-    if args.duration is not None and args.duration <= 0:
-        parser.error('--duration must be > 0')
-    if args.rate is not None and args.rate <= 0:
-        parser.error('--rate must be > 0')
+    from itasc_core.composition.model import MAX_RATE, MIN_RATE
+    if args.duration is not None and not 0 < args.duration < math.inf:
+        parser.error(f'--duration must be a finite number of seconds > 0 (got {args.duration})')
+    if args.rate is not None and not MIN_RATE <= args.rate <= MAX_RATE:
+        parser.error(f'--rate must be between {MIN_RATE:g} and {MAX_RATE:g} Hz (got {args.rate})')
     if args.summary_json is not None and not args.summary_json.parent.is_dir():
         parser.error(f'--summary-json: no directory {args.summary_json.parent}')
     return args

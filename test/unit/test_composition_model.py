@@ -29,7 +29,7 @@ def test_pattern_demo_loads_with_includes(repo_root):
 
 @pytest.mark.parametrize('text, path, message', [
     ('composite: {name: app, entities: [{name: a}]}', 'composite.entities[0].kind', 'required field'),
-    ('composite: {name: app, rate: -5}', 'composite.rate', 'greater than 0'),
+    ('composite: {name: app, rate: -5}', 'composite.rate', 'greater than or equal to 0.01'),
     ('composite: {name: app, colour: red}', 'composite.colour', 'unknown field'),
     ('composite: {name: 1app}', 'composite.name', 'pattern'),
     ('composite: {name: app, entities: [{name: a, kind: K}, {name: a, kind: K}]}', 'composite', 'duplicate'),

@@ -205,7 +205,7 @@ ROS_DRIVER = {'robot': 'panda', 'kind': 'ros2_control', 'controller': 'velocity_
 #: (id, mutation, expected path in the main file, words of the message)
 BROKEN = [
     ('rate not a number', _set('application.rate', 'fast'), 'application.rate', 'valid number'),
-    ('negative rate', _set('application.rate', -10), 'application.rate', 'greater than 0'),
+    ('negative rate', _set('application.rate', -10), 'application.rate', 'greater than or equal to 0.01'),
     ('negative gain', _set(P + 'tasks[0].controller.kp', -1.0), P + 'tasks[0].controller.kp',
      'greater than or equal to 0'),
     ('gain of wrong type', _set(P + 'tasks[0].controller.kp', [1]), P + 'tasks[0].controller.kp', 'valid number'),

@@ -82,6 +82,49 @@ def test_a_non_finite_task_weight_is_refused(config, value):
     assert str(value) in err.message and 'finite' in err.message, str(err)
 
 
+@pytest.mark.parametrize('value', ['inf', '-Infinity', 'nan', '1e400'])
+def test_a_non_finite_number_written_as_a_string_is_refused(config, value):
+    """Pydantic reads ``'inf'`` as a number where one is expected: the rate went through as inf (a
+    traceback when the Timer was made), a setpoint's duration as inf (a Task that never moves),
+    a driver's ``silent_after`` as inf (its watchdog off)."""
+    edit_yaml(_app(config), lambda a: a['application'].update(rate=value))
+    err = refused(_app(config))
+    assert (err.file, err.path, err.message) == (str(_app(config)), 'application.rate',
+                                                 f'{value!r} is not a finite number'), str(err)
+
+
+@pytest.mark.parametrize('rate', [1e-9, 1e6, '1e308'])
+def test_a_rate_no_timer_can_keep_is_refused(config, rate):
+    """0.01 Hz to 100 kHz: 1e308 overflowed the Timer's next tick (a traceback), 1e-9 ran with no
+    tick at all and exited 0."""
+    edit_yaml(_app(config), lambda a: a['application'].update(rate=rate))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_app(config)), 'application.rate'), str(err)
+    assert 'greater than or equal to 0.01' in err.message or 'less than or equal to 100000' in err.message, str(err)
+
+
+@pytest.mark.parametrize('app, edit, path, message', [
+    ('approach_object_ros_driver', lambda a: a['application']['drivers'][0].update(joint_states='bad topic!'),
+     'application.drivers[0].joint_states', "'bad topic!' is not a ROS topic name: topic name must not contain "
+     "characters other than alphanumerics, '_', '~', '{', or '}'"),
+    ('approach_object_ros_driver', lambda a: a['application']['drivers'][0].update(controller='a//b'),
+     'application.drivers[0].controller', "'a//b' is not a ROS topic name: topic name must not contain repeated '/'"),
+    ('approach_object_ros_driver', lambda a: a['application']['drivers'][0].update(command_topic='/x/1y'),
+     'application.drivers[0].command_topic', "'/x/1y' is not a ROS topic name: topic name token must not start "
+     "with a number"),
+    ('approach_object', lambda a: a['application'].update(sensors=[{'object': 'target', 'topic': '/target/pose/'}]),
+     'application.sensors[0].topic', "'/target/pose/' is not a ROS topic name: topic name must not end with a "
+     "forward slash"),
+])
+def test_a_topic_name_ros_would_refuse_is_refused_with_the_model(config, app, edit, path, message):
+    """Before, the model passed and the node that was to use the topic failed while the
+    application deployed its entities: an rclpy traceback, Safety, exit 2 after the start."""
+    model = config / 'apps' / f'{app}.yaml'
+    edit_yaml(model, edit)
+    err = refused(model)
+    assert (err.file, err.path, err.message) == (str(model), path, message), str(err)
+
+
 def test_an_object_position_with_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))
@@ -603,3 +646,19 @@ def test_the_bootstrap_refuses_bad_models_with_exit_2_fast_and_starts_nothing(co
         assert elapsed < 5.0, f'{model}: refused after {elapsed:.1f} s'
         assert peak < 500_000, f'{model}: {peak} kB'
         assert threads and not any(name.startswith('dds.') for name in threads), threads
+
+
+@pytest.mark.parametrize('option, value, message', [
+    ('--rate', 'nan', '--rate must be between 0.01 and 100000 Hz (got nan)'),
+    ('--rate', 'inf', '--rate must be between 0.01 and 100000 Hz (got inf)'),
+    ('--rate', '1e-9', '--rate must be between 0.01 and 100000 Hz (got 1e-09)'),
+    ('--duration', 'nan', '--duration must be a finite number of seconds > 0 (got nan)'),
+    ('--duration', 'inf', '--duration must be a finite number of seconds > 0 (got inf)')])
+def test_the_bootstrap_refuses_a_rate_or_duration_that_is_no_number_of_seconds(capsys, option, value, message):
+    """``--rate nan`` failed in the Timer after the bring-up began (a traceback), ``--rate inf`` in
+    an overflow, and ``--duration nan`` never stopped; ``--rate`` skips the model's validation."""
+    from itasc_bringup.bootstrap import parse_args
+    with pytest.raises(SystemExit) as exit_:
+        parse_args(['approach_object', option, value])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == f'bootstrap: error: {message}'

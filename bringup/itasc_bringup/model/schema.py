@@ -24,9 +24,10 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING, Any, Literal
 
-from itasc_core.composition.model import OutsideEventModel, RunningStateModel, RunningTransitionModel
+from itasc_core.composition.model import (MAX_RATE, MIN_RATE, OutsideEventModel, RunningStateModel,
+                                         RunningTransitionModel)
 from itasc_core.computation.conditions import CONDITIONS
-from itasc_core.computation.parameters import Names, partial
+from itasc_core.computation.parameters import Names, TopicName, partial
 from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
@@ -508,7 +509,7 @@ class Sensor(_Model):
     """The object whose pose it measures."""
     kind: Literal['pose'] = 'pose'
     """``pose``: ``geometry_msgs/PoseStamped`` in the world frame."""
-    topic: str = Field(pattern=r'^/?[A-Za-z0-9_/]+$')
+    topic: TopicName
     """The topic it reads."""
 
 
@@ -517,7 +518,7 @@ class Application(_Model):
 
     name: str = Field(pattern=NAME)
     """The application's name: its root namespace ``/<name>``."""
-    rate: float = Field(gt=0)
+    rate: float = Field(ge=MIN_RATE, le=MAX_RATE)
     """The control rate [Hz]."""
     program: Program
     """The Constraint-based program."""

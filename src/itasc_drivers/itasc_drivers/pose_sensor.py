@@ -12,7 +12,7 @@ from rclpy.subscription import Subscription
 from itasc_core.communication.ports import PortSpec
 from itasc_core.communication.qos import OUTSIDE_QOS
 from itasc_core.computation.functional_entity import FunctionalEntity
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import ParameterModel, TopicName
 from itasc_core.itasc.entities.scene_entity import object_pose
 
 __all__ = ['PoseSensor']
@@ -25,7 +25,7 @@ class PoseSensor(FunctionalEntity):
     class Parameters(ParameterModel):
         object: str = Field(default='object', frozen=True)
         """The object whose pose it measures."""
-        topic: str = '/object_pose'
+        topic: TopicName = '/object_pose'
         """Where ``geometry_msgs/PoseStamped`` poses (world frame) arrive."""
 
     @classmethod

@@ -47,7 +47,7 @@ from itasc_core.communication.ports import PortSpec
 from itasc_core.communication.qos import OUTSIDE_QOS
 from itasc_core.communication.samples import JointSample
 from itasc_core.computation.functional_entity import FunctionalEntity
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import ParameterModel, TopicName
 
 from .ports import driver_ports
 
@@ -64,9 +64,9 @@ class Ros2ControlAdapter(FunctionalEntity):
         """The robot it drives."""
         joints: list[str] = Field(min_length=1, frozen=True)
         """The controller's joints, in the order its commands have them."""
-        joint_states_topic: str = '/joint_states'
+        joint_states_topic: TopicName = '/joint_states'
         """Where the driver publishes ``sensor_msgs/JointState``."""
-        command_topic: str = '/velocity_controller/commands'
+        command_topic: TopicName = '/velocity_controller/commands'
         """Where commands go."""
         interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
         """What the controller takes: velocities or positions (``std_msgs/Float64MultiArray``), or a

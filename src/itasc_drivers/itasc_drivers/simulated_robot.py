@@ -16,7 +16,6 @@ takes its own joints by name; output ``joint_state``: ``JointPositions(<robot>)`
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from dataclasses import replace
 from typing import Literal
@@ -60,14 +59,14 @@ class SimulatedRobot(FunctionalEntity):
         upper: list[float] = Field(default_factory=list)
         """Highest position per joint; none: the URDF's."""
         velocity_limit: list[float] = Field(default_factory=list)
-        """Largest speed per joint (> 0); none: the URDF's."""
+        """Largest speed per joint (> 0, inf: none); none given: the URDF's."""
 
         @field_validator('velocity_limit')
         @classmethod
         def _positive(cls, value: list[float]) -> list[float]:
-            if not all(0.0 < v < math.inf for v in value):
-                raise ValueError('every velocity limit must be finite and > 0 (a limit of 0 or below would '
-                                 'move the joint whatever is commanded, or never)')
+            if not all(v > 0.0 for v in value):
+                raise ValueError('every velocity limit must be > 0 (a limit of 0 or below would move the joint '
+                                 'whatever is commanded, or never)')
             return value
 
     @classmethod

@@ -228,7 +228,17 @@ def _resolve(value: Any, *, base: Path, loc: Loc, tree: _Tree, stack: tuple[Path
         return [_resolve(v, base=base, loc=loc + (i,), tree=tree, stack=stack) for i, v in enumerate(value)]
     if isinstance(value, float) and not math.isfinite(value):
         raise _error_at(loc, tree, f'{value} is not a finite number')
+    if isinstance(value, str) and _non_finite(value):  # a number field would read it as one
+        raise _error_at(loc, tree, f'{value!r} is not a finite number')
     return value
+
+
+def _non_finite(text: str) -> bool:
+    """Whether ``text`` reads as a number that is not finite (``'inf'``, ``'nan'``, ``'1e400'``)."""
+    try:
+        return not math.isfinite(float(text))
+    except ValueError:
+        return False
 
 
 def _include(reference: str, *, base: Path, loc: Loc, tree: _Tree, stack: tuple[Path, ...]) -> Any:

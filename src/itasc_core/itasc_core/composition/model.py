@@ -34,10 +34,15 @@ __all__ = [
     'SafetyModel',
     'OutsideEventModel',
     'OUTSIDE_EVENTS',
+    'MIN_RATE',
+    'MAX_RATE',
     'walk',
 ]
 
 _NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
+#: The rates a Timer can keep [Hz]: a tick every 100 s at the least, 100,000 ticks a second at most
+#: (a rate beyond a float's period, or one that never ticks, is a typo, not a control rate).
+MIN_RATE, MAX_RATE = 0.01, 100_000.0
 
 
 class _Strict(BaseModel):
@@ -230,7 +235,7 @@ class CompositeModel(_Strict):
     #: Topics and services of other ROS nodes that raise events of this composite.
     events: list[OutsideEventModel] = Field(default_factory=list)
     #: Root only: the rate of the Timer that triggers the root Scheduler.
-    rate: float | None = Field(default=None, gt=0)
+    rate: float | None = Field(default=None, ge=MIN_RATE, le=MAX_RATE)
     #: The machine this composite runs on: the host agent of that name starts it (see
     #: ``itasc_core.composition.host_agent``). None: where its parent runs. Ignored on the root,
     #: which runs where the bootstrap runs.

@@ -23,15 +23,15 @@ import typing
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
 from pydantic.fields import FieldInfo
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
 from ..kinds import derived_model
 
-__all__ = ['ParameterModel', 'NoParameters', 'Names', 'declarations', 'flatten', 'nest', 'ros_type', 'problems',
-           'partial']
+__all__ = ['ParameterModel', 'NoParameters', 'Names', 'TopicName', 'declarations', 'flatten', 'nest', 'ros_type',
+           'problems', 'partial']
 
 _INT64 = 2 ** 63 - 1
 
@@ -75,6 +75,26 @@ def _distinct(names: list[str]) -> list[str]:
 #: Names each given once: a Task's outputs or a joint chain's joints, where a name twice would be a
 #: constraint row twice.
 Names = Annotated[list[str], AfterValidator(_distinct)]
+
+
+def _topic_name(name: str) -> str:
+    from rclpy.exceptions import InvalidTopicNameException
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    from rclpy.validate_topic_name import validate_topic_name
+    try:
+        validate_topic_name(name)
+        validate_full_topic_name(expand_topic_name(name, 'node', '/'))
+    except InvalidTopicNameException as err:
+        why = str(err).splitlines()[0].removeprefix('Invalid topic name: ').rstrip(':')
+        raise ValueError(f'{name!r} is not a ROS topic name: {why}') from None
+    return name
+
+
+#: A ROS topic name (absolute, relative or private), as rclpy checks it when a node subscribes or
+#: publishes: a wrong one is refused with the model, not by the node that would have used it.
+TopicName = Annotated[str, AfterValidator(_topic_name), Field(json_schema_extra={  # for editors; rclpy decides
+    'pattern': r'^(~/|/)?[A-Za-z_{][A-Za-z0-9_{}]*(/[A-Za-z_{][A-Za-z0-9_{}]*)*$'})]
 
 
 def flatten(values: BaseModel) -> dict[str, Any]:

@@ -7,7 +7,7 @@ import sys
 from collections.abc import Mapping
 from typing import Any, Literal
 
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import ParameterModel, TopicName
 from pydantic import Field
 
 from .kind import DrivenRobot, Driver
@@ -16,16 +16,16 @@ __all__ = ['Ros2Control']
 
 
 class Ros2ControlSection(ParameterModel):
-    joint_states: str = '/joint_states'
+    joint_states: TopicName = '/joint_states'
     """Where the driver publishes ``sensor_msgs/JointState``."""
-    controller: str = Field(pattern=r'^[A-Za-z0-9_/]+$')
+    controller: TopicName
     """The ros2_control controller that takes the commands."""
     interface: Literal['velocity', 'position', 'trajectory'] = 'velocity'
     """What the controller takes: ``velocity`` or ``position`` (``std_msgs/Float64MultiArray``), or ``trajectory``
     (``trajectory_msgs/JointTrajectory``)."""
     joints: list[str] = Field(min_length=1)
     """The controller's joints, in the order its commands have them."""
-    command_topic: str | None = None
+    command_topic: TopicName | None = None
     """Where commands go (default ``/<controller>/commands``, or ``/<controller>/joint_trajectory``)."""
 
 

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from pydantic import Field
 
-from itasc_core.computation.parameters import ParameterModel
+from itasc_core.computation.parameters import ParameterModel, TopicName
 
 from ..setpoint_generator import TopicSetpoint
 from .kind import SetpointKind
@@ -13,7 +12,7 @@ __all__ = ['Topic']
 
 
 class FromTopic(ParameterModel):
-    topic: str = Field(min_length=1)
+    topic: TopicName
     """Topic of ``std_msgs/Float64MultiArray`` setpoints, one value per output."""
 
 
