@@ -33,6 +33,8 @@ def test_pattern_demo_loads_with_includes(repo_root):
     ('composite: {name: app, colour: red}', 'composite.colour', 'unknown field'),
     ('composite: {name: 1app}', 'composite.name', 'pattern'),
     ('composite: {name: app, entities: [{name: a, kind: K}, {name: a, kind: K}]}', 'composite', 'duplicate'),
+    # a composite's own node (events read as lost from two nodes of one name)
+    ('composite: {name: app, entities: [{name: scheduler, kind: K}]}', 'composite', "'scheduler' is the name of"),
     ('composite: {name: app, configure: [fast]}', 'composite', "unknown configuration 'fast'"),
     ('composite: {name: app, running: {initial: x, states: {y: {}}}}', 'composite.running', "initial state 'x'"),
     ('composite: {name: app, entities: [{include: missing.yaml}]}', 'composite.entities[0].include', 'cannot be read'),

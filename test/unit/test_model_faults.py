@@ -125,6 +125,62 @@ def test_a_topic_name_ros_would_refuse_is_refused_with_the_model(config, app, ed
     assert (err.file, err.path, err.message) == (str(model), path, message), str(err)
 
 
+@pytest.mark.parametrize('app', ['approach_object', 'approach_object_ros_driver'])
+def test_a_limit_that_crosses_the_urdfs_other_limit_is_refused_where_it_is_given(config, app):
+    """A model's ``lower`` above the URDF's upper: with a ros2_control driver the model was taken
+    (the Solver planned on lower > upper); with a simulated one the error blamed the initial
+    positions in another file."""
+    edit_yaml(config / 'robots' / 'panda.yaml', lambda r: r.update(limits={'panda_joint1': {'lower': 5.0}}))
+    err = refused(config / 'apps' / f'{app}.yaml')
+    assert (err.file, err.path, err.message) == (
+        str(config / 'robots' / 'panda.yaml'), 'limits.panda_joint1',
+        "lower 5 is above upper 2.8973 (the URDF's: [-2.8973, 2.8973])"), str(err)
+
+
+def test_a_urdf_whose_limits_are_crossed_is_refused(config):
+    """Before, the joint was taken as unlimited and the application ran."""
+    urdf = config / 'robots' / 'panda.urdf'
+    text = urdf.read_text()
+    at = text.index('<limit', text.index('name="panda_joint1"'))
+    urdf.write_text(text[:at] + text[at:].replace('lower="-2.8973" upper="2.8973"', 'lower="2.8973" upper="-2.8973"', 1))
+    err = refused(_app(config))
+    assert (err.file, err.path, err.message) == (
+        str(config / 'robots' / 'panda.yaml'), 'urdf',
+        "URDF 'panda.urdf': the lower limit of panda_joint1 is above its upper limit"), str(err)
+
+
+def _rename_configuration(program: dict, old: str, new: str) -> None:
+    program['configurations'][new] = program['configurations'].pop(old)
+    for state in program['running']['states'].values():
+        state['configure'] = [new if c == old else c for c in state.get('configure', [])]
+
+
+@pytest.mark.parametrize('edit, path, message', [
+    (lambda p: p['running']['states']['hold'].update({'raise': ['e_itasc_stop']}), 'running.states.hold.raise[0]',
+     "'e_itasc_stop' is an event of the life cycle of composite 'itasc': the runtime raises it, a model does not"),
+    (lambda p: p['monitors'][0].update(event='e_AvoidObstacle_deactivate'), 'monitors[0].event',
+     "'e_AvoidObstacle_deactivate' is an event of the life cycle of composite 'AvoidObstacle': the runtime raises "
+     "it, a model does not"),
+    (lambda p: _rename_configuration(p, 'high_accuracy_control', 'stop'), 'configurations.stop',
+     "'stop' is reserved (a word of the life cycle, or the configuration a Task starts in): choose another "
+     "configuration name"),
+    (lambda p: _rename_configuration(p, 'high_accuracy_control', 'as_configured'), 'configurations.as_configured',
+     "'as_configured' is reserved (a word of the life cycle, or the configuration a Task starts in): choose "
+     "another configuration name"),
+    (lambda p: p['monitors'][1].update(name='coordinator'), 'monitors[1].name',
+     "'coordinator' is reserved: choose another monitor name"),
+])
+def test_a_model_does_not_speak_the_life_cycle_or_take_the_composites_own_names(config, edit, path, message):
+    """A state raising ``e_itasc_stop`` stopped the program from inside (the run hung until its
+    stop timed out, exit 1); a configuration named ``stop`` or ``activate`` is commanded to a Task
+    as its life-cycle command (``activate`` switched the gains when the Task was activated, not
+    on the Monitor's event); a Monitor named ``coordinator`` shared the Coordinator's node name
+    (events were reported lost). Each ran; now the model is refused naming the field."""
+    edit_yaml(_program(config), edit)
+    err = refused(_app(config))
+    assert (err.file, err.path, err.message) == (str(_program(config)), path, message), str(err)
+
+
 def test_an_object_position_with_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))

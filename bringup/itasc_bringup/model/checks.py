@@ -19,10 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import pinocchio as pin
-from itasc_core.communication.event_names import (COMPOSE_FAILED, COMPOSED, JOINTS_MISSING, SOLVER_STATUSES, event,
-                                                  solver_status)
+from itasc_core.communication.event_names import (COMPOSE_FAILED, COMPOSED, JOINTS_MISSING, LIFE_CYCLE,
+                                                  SOLVER_STATUSES, event, solver_status)
 from itasc_core.composition.checks import check_outside_event
 from itasc_core.composition.loader import MAX_BYTES, ModelError, format_loc, source_of
+from itasc_core.composition.model import COMPOSITE_NODES
 from itasc_core.itasc.robot import Robot as RobotModel
 from itasc_drivers.drivers import DrivenRobot
 
@@ -30,7 +31,7 @@ from .locations import config_dirs
 from .schema import Application, Program, Task
 
 __all__ = ['check', 'load_robot', 'joint_limits', 'driven_robot',
-           'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED', 'VECTORS',
+           'SOLVER_EVENTS', 'TASK_QUANTITIES', 'SOLVER_QUANTITIES', 'RESERVED', 'AS_CONFIGURED', 'VECTORS',
            'MAX_URDF_BYTES']
 
 Loc = tuple[Any, ...]
@@ -43,6 +44,8 @@ SOLVER_QUANTITIES = ('solve_time', 'min_singular_value', 'damping')
 VECTORS = ('output', 'setpoint', 'error')
 #: Entity names of the Constraint-based program composite that Tasks and Monitors may not take.
 RESERVED = ('Scene', 'Solver')
+#: A Task composite's Running state before any configuration event (see ``transform``).
+AS_CONFIGURED = 'as_configured'
 #: The largest URDF read (the shipped ones are about 6 kB).
 MAX_URDF_BYTES = 16 * MAX_BYTES
 
@@ -126,6 +129,7 @@ def check(app: Application, sources: dict[Loc, Path], *, root: Loc = ('applicati
     _configurations(where, program)
     _outside_events(where, app)
     _composition(where, program, [j for js in joints.values() for j in js])
+    _life_cycle(where, app)
     _running(where, program, outside=[e.event for e in app.events])
     _solver(where, ('program', 'solver'), program.solver, [j for js in joints.values() for j in js])
     _drivers(where, resolved, joints)
@@ -168,10 +172,19 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
                               f"robot '{robot.name}' has no link '{frame.link}'; links: {links}")
         if frame.name in links:
             raise where.error(loc + ('frames', k, 'name'), f"'{frame.name}' is already a link of '{robot.name}'")
-    for joint in robot.limits:
+    if model.crossed_limits:
+        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}': the lower limit of {', '.join(model.crossed_limits)} "
+                          'is above its upper limit')
+    for joint, override in robot.limits.items():
         if joint not in model.joint_names:
             raise where.error(loc + ('limits', joint), f"robot '{robot.name}' has no joint '{joint}'; "
                               f'joints: {model.joint_names}')
+        i = model.joint_names.index(joint)
+        lower = model.lower[i] if override.lower is None else override.lower
+        upper = model.upper[i] if override.upper is None else override.upper
+        if lower > upper:
+            raise where.error(loc + ('limits', joint), f'lower {lower:g} is above upper {upper:g} '
+                              f"(the URDF's: [{model.lower[i]:g}, {model.upper[i]:g}])")
     return str(urdf), model
 
 
@@ -248,7 +261,7 @@ def _tasks(where: _Where, program: Program, *, robots: dict, models: dict[str, R
 def _monitors(where: _Where, program: Program) -> None:
     tasks = {t.name: t for t in program.tasks}
     _unique(where, [('program', 'monitors', i, 'name') for i in range(len(program.monitors))],
-            [m.name for m in program.monitors], 'monitor name', reserved=RESERVED + tuple(tasks))
+            [m.name for m in program.monitors], 'monitor name', reserved=RESERVED + COMPOSITE_NODES + tuple(tasks))
     for i, monitor in enumerate(program.monitors):
         target, _, quantity = monitor.watch.partition('.')
         quantity = quantity.split('[')[0]
@@ -408,6 +421,30 @@ def _drivers(where: _Where, app: Application, joints: dict[str, list[str]]) -> N
     for robot in joints:
         if robot not in driven:
             raise where.error(('drivers',), f"robot '{robot}' has no driver")
+
+
+def _life_cycle(where: _Where, app: Application) -> None:
+    """What the model raises (Monitors, the Running sub-FSM's states, outside events) is not what
+    the runtime says to or of a composite (``e_itasc_stop`` raised by a state stopped the program
+    from inside and the run hung), and no configuration is named after such a word (``stop`` is
+    commanded to a Task as ``e_<Task>_stop``)."""
+    program = app.program
+    composites = [app.name, program.name] + [t.name for t in program.every_task]
+    life_cycle = {event(c, word) for c in composites for word in LIFE_CYCLE}
+    raised: list[tuple[Loc, str]] = [(('program', 'monitors', i, 'event'), m.event)
+                                     for i, m in enumerate(program.monitors)]
+    if program.running is not None:
+        raised += [(('program', 'running', 'states', name, 'raise', k), e)
+                   for name, state in program.running.states.items() for k, e in enumerate(state.raise_)]
+    raised += [(('events', i, 'event'), outside.event) for i, outside in enumerate(app.events)]
+    for loc, name in raised:
+        if name in life_cycle:
+            raise where.error(loc, f"'{name}' is an event of the life cycle of composite "
+                              f"'{name.removeprefix('e_').rsplit('_', 1)[0]}': the runtime raises it, a model does not")
+    for name in program.configurations:
+        if name in LIFE_CYCLE or name == AS_CONFIGURED:
+            raise where.error(('program', 'configurations', name), f"'{name}' is reserved (a word of the "
+                              'life cycle, or the configuration a Task starts in): choose another configuration name')
 
 
 def _outside_events(where: _Where, app: Application) -> None:

@@ -42,7 +42,7 @@ from itasc_core.communication.event_names import (ACTIVATE, DEACTIVATE, OFF, ON,
 from itasc_core.composition.model import (CompositeModel, CompositionStepModel, ConnectionModel, EntityModel,
                                           MonitorModel, RunningModel, SafetyModel)
 
-from .checks import SOLVER_QUANTITIES, driven_robot, joint_limits
+from .checks import AS_CONFIGURED, SOLVER_QUANTITIES, driven_robot, joint_limits
 from .schema import Application, CompositionStep, Driver, Monitor, Program, Solver, Task, TaskSwap
 
 __all__ = ['to_composition', 'KINDS']
@@ -58,8 +58,6 @@ KINDS = {
     'rows': 'itasc_tasks.entities.constraint_rows_entity:ConstraintRowsEntity',
     'pose': 'itasc_drivers.pose_sensor:PoseSensor',
 }
-#: The Task composite's state before any configuration event (see the module docstring).
-AS_CONFIGURED = 'as_configured'
 EMERGENCY = SafetyModel(raise_to_parent=[SAFETY_EVENT])
 
 

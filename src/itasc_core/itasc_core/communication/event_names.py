@@ -31,7 +31,7 @@ __all__ = [
     'CHILD_ADDED', 'CHILD_REMOVED', 'BIND', 'CHECK_FAULTS', 'FAULTS_CHECKED', 'RECOVERING', 'ANSWERS',
     # entities switched by the Coordinator, configurations, robots
     'ACTIVATE', 'DEACTIVATE', 'ON', 'OFF', 'APPLIED', 'FAILED', 'PARAMETER_SET', 'PARAMETER_REFUSED', 'JOINTS_MISSING',
-    'NOTHING_RECEIVED', 'SOLVER_STATUSES',
+    'NOTHING_RECEIVED', 'SOLVER_STATUSES', 'LIFE_CYCLE',
 ]
 
 #: The event that puts a composite (and its parent, where the application says so) into Safety.
@@ -100,6 +100,15 @@ JOINTS_MISSING = 'joints_missing'
 NOTHING_RECEIVED = 'nothing_received'
 #: What the Solver reports as ``e_solver_<status>``.
 SOLVER_STATUSES = ('ok', 'singular', 'infeasible', 'saturated')
+
+#: What the runtime says to and of a composite (``e_<composite>_<word>``): the life cycle's commands
+#: and answers, a Coordinator's to its own entities, a composition's, a recovery's, a child switched
+#: on or off. An application model raises none of them, nor names a configuration after one (a
+#: configuration ``stop`` would be commanded to a Task as ``e_<Task>_stop``).
+LIFE_CYCLE = (CONFIGURE, START, RUN, STOP, EMERGENCY, *NOTIFICATIONS, TIMEOUT, *ANSWERS,
+              *(answer for answers in ANSWERS.values() for answer in answers), CONNECTION_REFUSED,
+              SCHEDULER_FAILED, SAFETY, COMPOSED, COMPOSE_FAILED, CHILD_ADDED, CHILD_REMOVED, BIND, CHECK_FAULTS,
+              FAULTS_CHECKED, RECOVERING, ACTIVATE, DEACTIVATE)
 
 
 def event(owner: str, what: str) -> str:

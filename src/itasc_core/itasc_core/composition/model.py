@@ -36,10 +36,14 @@ __all__ = [
     'OUTSIDE_EVENTS',
     'MIN_RATE',
     'MAX_RATE',
+    'COMPOSITE_NODES',
     'walk',
 ]
 
 _NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
+#: The composite's own nodes (paper §6: its Coordinator, Composer, Configurator and Scheduler, the
+#: root's Timer): no entity or Monitor of it may take one of their names.
+COMPOSITE_NODES = ('coordinator', 'composer', 'configurator', 'scheduler', 'timer')
 #: The rates a Timer can keep [Hz]: a tick every 100 s at the least, 100,000 ticks a second at most
 #: (a rate beyond a float's period, or one that never ticks, is a typo, not a control rate).
 MIN_RATE, MAX_RATE = 0.01, 100_000.0
@@ -250,6 +254,10 @@ class CompositeModel(_Strict):
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ValueError(f'duplicate entity names {duplicates}')
+        taken = sorted(set(names) & set(COMPOSITE_NODES))
+        if taken:
+            raise ValueError(f"'{taken[0]}' is the name of one of the composite's own nodes {COMPOSITE_NODES}: "
+                             'choose another entity or monitor name')
         entity_names = {e.name for e in self.entities}
         for name in [*(self.schedule or []), *self.inactive]:
             if name not in entity_names:

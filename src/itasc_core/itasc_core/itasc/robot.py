@@ -118,6 +118,10 @@ class Robot:
         vel = np.array(m.velocityLimit, dtype=float)
         vel[(vel <= 0.0) | (vel >= _INF_LIMIT)] = np.inf
         self.lower, self.upper, self.velocity_limit = lo, hi, vel
+        #: Joints whose URDF limits are crossed (lower above upper): taken as unlimited above, a
+        #: URDF error that the model check refuses.
+        self.crossed_limits = [self.joint_names[v] for q, v in zip(sq, sv)
+                               if m.lowerPositionLimit[q] > m.upperPositionLimit[q]]
 
     def _index(self, joint: str) -> int:
         try:
