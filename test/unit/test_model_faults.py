@@ -181,6 +181,20 @@ def test_a_model_does_not_speak_the_life_cycle_or_take_the_composites_own_names(
     assert (err.file, err.path, err.message) == (str(_program(config)), path, message), str(err)
 
 
+@pytest.mark.parametrize('task, setpoint, message', [
+    ('retreat', {'kind': 'minimum_jerk', 'value': [0, 0, -0.15], 'duration': 2.0, 'max_velocity': [1, 1]},
+     "setpoint max_velocity has 2 values for 3 outputs ['x', 'y', 'z']"),
+    ('retreat', {'kind': 'trapezoidal', 'value': [0, 0, -0.15], 'max_acceleration': [1, 1]},
+     "setpoint max_acceleration has 2 values for 3 outputs ['x', 'y', 'z']")])
+def test_a_setpoint_list_neither_one_nor_one_per_output_is_refused(config, task, setpoint, message):
+    """Any list of numbers of a setpoint section is per output. A profile's limits were not checked:
+    a numpy broadcast error and Safety when the Task first ran, and a Task not active at the start
+    (Retreat) ran to exit 0 and would have failed only when switched on."""
+    edit_yaml(config / 'tasks' / f'{task}.yaml', lambda t: t.update(setpoint=setpoint))
+    err = refused(_app(config))
+    assert (err.file, err.message) == (str(config / 'tasks' / f'{task}.yaml'), message), str(err)
+
+
 def test_an_object_position_with_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))

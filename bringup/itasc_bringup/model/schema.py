@@ -238,9 +238,12 @@ class TaskBase(_Model):
     def _check_setpoint(self, sp: Setpoint, m: int) -> None:
         if getattr(sp, 'pose', None) is not None and not self.kind.pose_setpoints:
             raise ValueError(f'a setpoint pose needs a task whose chain is a pose (not {self.type}); give a value')
-        for key in ('value', 'amplitude', 'offset', 'phase'):
+        # a setpoint's lists of numbers are per output: ``value`` one per output, any other (a periodic
+        # amplitude, a profile's max_velocity) one for all or one per output
+        for key in type(sp).model_fields:
             v = getattr(sp, key, None)
-            if v is not None and len(v) not in ((1, m) if key != 'value' else (m,)):
+            if isinstance(v, list) and v and all(isinstance(x, (int, float)) for x in v) \
+                    and len(v) not in ((1, m) if key != 'value' else (m,)):
                 raise ValueError(f'setpoint {key} has {len(v)} values for {m} outputs {list(self.selected)}')
 
 
