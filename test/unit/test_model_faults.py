@@ -142,7 +142,8 @@ def test_a_urdf_whose_limits_are_crossed_is_refused(config):
     urdf = config / 'robots' / 'panda.urdf'
     text = urdf.read_text()
     at = text.index('<limit', text.index('name="panda_joint1"'))
-    urdf.write_text(text[:at] + text[at:].replace('lower="-2.8973" upper="2.8973"', 'lower="2.8973" upper="-2.8973"', 1))
+    crossed = text[at:].replace('lower="-2.8973" upper="2.8973"', 'lower="2.8973" upper="-2.8973"', 1)
+    urdf.write_text(text[:at] + crossed)
     err = refused(_app(config))
     assert (err.file, err.path, err.message) == (
         str(config / 'robots' / 'panda.yaml'), 'urdf',
