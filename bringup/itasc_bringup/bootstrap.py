@@ -333,6 +333,10 @@ def main(argv: list[str] | None = None) -> int:
                 warnings=warnings)
         return code
     finally:
+        # how the run ended is decided (and said): further signals change nothing; ignored, not
+        # handled, so that none lands on the default handler the interpreter's finalization puts back
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)
         if console is not None:
             console.close()
         if recorder is not None:

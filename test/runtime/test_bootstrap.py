@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -89,6 +90,22 @@ def test_ctrl_c_leads_to_an_orderly_stop_and_exit_0(deploy):
     sequences = state_sequences(app.out)
     for composite in ('app', 'program', 'track', 'hold'):
         assert sequences.get(composite, [''])[-1] == 'Active.Stop.Stopped.NotifyStopped', app.output()
+
+
+def test_signals_after_the_verdict_leave_its_exit_code():
+    """Once the console said how the run ended and with which exit code, more Ctrl-Cs or SIGTERMs
+    (an impatient user, a supervisor's second signal) do not change it. Before, one that came while
+    the interpreter finalized found the default handler back and the exit status was 130 / 143 after
+    "exit 0" was printed."""
+    with Spawned([*BOOTSTRAP, 'pattern_demo']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        app.process.send_signal(signal.SIGTERM)
+        app.wait_for_line('app: stopped (signal SIGTERM) - exit 0', timeout=60)
+        while app.process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                app.process.send_signal(signal.SIGINT)
+            time.sleep(0.01)
+        assert app.finish(timeout=60) == 0, app.output()
 
 
 def _runnable_time_of_main_thread(pid: int) -> float:
