@@ -196,6 +196,25 @@ def test_a_setpoint_list_neither_one_nor_one_per_output_is_refused(config, task,
     assert (err.file, err.message) == (str(config / 'tasks' / f'{task}.yaml'), message), str(err)
 
 
+def test_a_name_too_long_for_a_ros_namespace_is_refused(config):
+    """A 300-character application name passed and the bootstrap died making its lock file (a
+    traceback, exit 1); a name is a ROS name token of at most 64 characters."""
+    edit_yaml(_app(config), lambda a: a['application'].update(name='a' * 65))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_app(config)), 'application.name'), str(err)
+    assert "pattern '^[A-Za-z][A-Za-z0-9_]{0,63}$'" in err.message, str(err)
+
+
+def test_a_priority_beyond_what_the_rows_message_carries_is_refused(config):
+    """10^30 passed and rclpy refused it as the Rows entity's parameter after the start (a traceback
+    and exit 2); ``ConstraintRows.priority`` is a uint32."""
+    task = config / 'tasks' / 'approach_object.yaml'
+    edit_yaml(task, lambda t: t.update(priority=10 ** 30))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(task), 'priority'), str(err)
+    assert err.message.startswith('Input should be less than or equal to 4294967295'), str(err)
+
+
 def test_an_object_position_with_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))

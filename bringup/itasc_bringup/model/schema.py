@@ -45,7 +45,9 @@ __all__ = ['KIND_SECTIONS', 'Application', 'Program', 'Robot', 'RobotFrame', 'Ob
            'ControllerSettings', 'Settings', 'State', 'Transition', 'Running', 'TaskSwap', 'CompositionStep',
            'TaskBase', 'MonitorBase', 'DriverBase', 'SolverBase', 'SetpointBase']
 
-NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
+#: A name (of an application, robot, object, frame, Task, Monitor...): a ROS name token of at most 64
+#: characters (names are joined into namespaces and topics, which DDS bounds).
+NAME = r'^[A-Za-z][A-Za-z0-9_]{0,63}$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
 
 
@@ -163,7 +165,7 @@ class TaskBase(_Model):
     """The Setpoint Generator (an equality Task)."""
     weights: list[float] = Field(default_factory=lambda: [1.0])
     """Weight of each constrained output in its priority level (one value: all)."""
-    priority: int = Field(default=0, ge=0)
+    priority: int = Field(default=0, ge=0, le=2**32 - 1)
     """Priority level, 0 highest."""
     constraint: Literal['equality', 'inequality'] = 'equality'
     """``equality``: follow the setpoint; ``inequality``: stay within ``d_min``/``d_max``."""

@@ -40,7 +40,7 @@ __all__ = [
     'walk',
 ]
 
-_NAME = r'^[A-Za-z][A-Za-z0-9_]*$'
+_NAME = r'^[A-Za-z][A-Za-z0-9_]{0,63}$'  # a ROS name token, 64 characters at most
 #: The composite's own nodes (paper §6: its Coordinator, Composer, Configurator and Scheduler, the
 #: root's Timer): no entity or Monitor of it may take one of their names.
 COMPOSITE_NODES = ('coordinator', 'composer', 'configurator', 'scheduler', 'timer')

@@ -34,7 +34,7 @@ class ConstraintRowsEntity(FunctionalEntity):
     class Parameters(ParameterModel):
         task: TaskName = 'task'
         """The Task it belongs to."""
-        priority: int = Field(default=0, ge=0)
+        priority: int = Field(default=0, ge=0, le=2**32 - 1)  # ConstraintRows.priority: uint32
         """Priority level of the Task's rows, 0 highest."""
         weights: list[float] = Field(default_factory=lambda: [1.0], min_length=1)
         """Weight of each row in its level: one value, or one per output (finite, > 0)."""
