@@ -215,6 +215,25 @@ def test_a_priority_beyond_what_the_rows_message_carries_is_refused(config):
     assert err.message.startswith('Input should be less than or equal to 4294967295'), str(err)
 
 
+def test_a_section_written_as_its_kind_alone_is_named_as_such(config):
+    """``solver: qp`` was reported as ``solver.kind: required field is missing``, although the kind
+    was there: the section is what is wrong."""
+    edit_yaml(_program(config), lambda p: p.update(solver='qp'))
+    err = refused(_app(config))
+    assert (err.file, err.path, err.message) == (
+        str(_program(config)), 'solver', "expected a section ({kind: ..., ...}), got 'qp'"), str(err)
+
+
+@pytest.mark.parametrize('include', [{'include': '../programs/approach_object.yaml', 'name': 'x'}, {'include': 5}])
+def test_an_include_with_other_fields_or_no_file_name_is_refused_as_an_include(config, include):
+    """Before, it was taken as the section itself (``application.program.robots: required field is
+    missing``)."""
+    edit_yaml(_app(config), lambda a: a['application'].update(program=include))
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(_app(config)), 'application.program.include'), str(err)
+    assert err.message == f'an include is {{include: FILE}} alone (a file name, no other field), got {include!r}'
+
+
 def test_an_object_position_with_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))

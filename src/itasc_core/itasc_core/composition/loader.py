@@ -221,7 +221,10 @@ def _resolve(value: Any, *, base: Path, loc: Loc, tree: _Tree, stack: tuple[Path
     if len(loc) > MAX_DEPTH:
         raise _error_at(loc, tree, f'nested deeper than {MAX_DEPTH} levels (includes resolved)')
     if isinstance(value, dict):
-        if set(value) == {'include'} and isinstance(value['include'], str):
+        if 'include' in value:
+            if set(value) != {'include'} or not isinstance(value['include'], str):
+                raise _error_at(loc + ('include',), tree, 'an include is {include: FILE} alone (a file name, no '
+                                f'other field), got {value!r}')
             return _include(value['include'], base=base, loc=loc, tree=tree, stack=stack)
         return {k: _resolve(v, base=base, loc=loc + (k,), tree=tree, stack=stack) for k, v in value.items()}
     if isinstance(value, list):
@@ -281,10 +284,13 @@ def _first_error(err: ValidationError, sources: dict[Loc, Path], at: Loc) -> Mod
     message = detail['msg'].removeprefix('Value error, ')
     if detail['type'] == 'unknown_kind':  # a kind field (``type``, ``condition``) naming no registered kind
         ctx = detail['ctx']
-        loc += (ctx['field'],)
-        got = detail['input'].get(ctx['field']) if isinstance(detail['input'], dict) else None
-        message = 'required field is missing' if got is None else \
-            f"unknown {ctx['what']} {got!r}; known: {ctx['known']}"
+        if not isinstance(detail['input'], dict):  # ``solver: qp``: a section written as its kind alone
+            message = f"expected a section ({{{ctx['field']}: ..., ...}}), got {detail['input']!r}"
+        else:
+            loc += (ctx['field'],)
+            got = detail['input'].get(ctx['field'])
+            message = 'required field is missing' if got is None else \
+                f"unknown {ctx['what']} {got!r}; known: {ctx['known']}"
     given = detail.get('input')
     missing_at = detail['loc'][-1] if detail['type'] == 'missing' and isinstance(given, list) else None
     if isinstance(missing_at, int):  # a fixed-length list (xyz, rpy) of too few values: the list is wrong
