@@ -162,6 +162,9 @@ def _rename_configuration(program: dict, old: str, new: str) -> None:
     (lambda p: p['monitors'][0].update(event='e_AvoidObstacle_deactivate'), 'monitors[0].event',
      "'e_AvoidObstacle_deactivate' is an event of the life cycle of composite 'AvoidObstacle': the runtime raises "
      "it, a model does not"),
+    (lambda p: p['monitors'][0].update(event='e_itasc_configure_entities'), 'monitors[0].event',
+     "'e_itasc_configure_entities' is an event of the life cycle of composite 'itasc': the runtime raises it, a "
+     "model does not"),
     (lambda p: _rename_configuration(p, 'high_accuracy_control', 'stop'), 'configurations.stop',
      "'stop' is reserved (a word of the life cycle, or the configuration a Task starts in): choose another "
      "configuration name"),

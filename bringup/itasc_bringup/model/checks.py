@@ -430,7 +430,7 @@ def _life_cycle(where: _Where, app: Application) -> None:
     commanded to a Task as ``e_<Task>_stop``)."""
     program = app.program
     composites = [app.name, program.name] + [t.name for t in program.every_task]
-    life_cycle = {event(c, word) for c in composites for word in LIFE_CYCLE}
+    life_cycle = {event(c, word): c for c in composites for word in LIFE_CYCLE}
     raised: list[tuple[Loc, str]] = [(('program', 'monitors', i, 'event'), m.event)
                                      for i, m in enumerate(program.monitors)]
     if program.running is not None:
@@ -439,8 +439,8 @@ def _life_cycle(where: _Where, app: Application) -> None:
     raised += [(('events', i, 'event'), outside.event) for i, outside in enumerate(app.events)]
     for loc, name in raised:
         if name in life_cycle:
-            raise where.error(loc, f"'{name}' is an event of the life cycle of composite "
-                              f"'{name.removeprefix('e_').rsplit('_', 1)[0]}': the runtime raises it, a model does not")
+            raise where.error(loc, f"'{name}' is an event of the life cycle of composite '{life_cycle[name]}': "
+                              'the runtime raises it, a model does not')
     for name in program.configurations:
         if name in LIFE_CYCLE or name == AS_CONFIGURED:
             raise where.error(('program', 'configurations', name), f"'{name}' is reserved (a word of the "
