@@ -774,3 +774,19 @@ def test_the_bootstrap_refuses_a_rate_or_duration_that_is_no_number_of_seconds(c
         parse_args(['approach_object', option, value])
     assert exit_.value.code == 2
     assert capsys.readouterr().err.splitlines()[-1] == f'bootstrap: error: {message}'
+
+
+@pytest.mark.parametrize('content, said', [
+    ('not xml at all', 'Error: Error=XML_ERROR_PARSING_TEXT ErrorID=8 (0x8) Line number=1'),
+    ('<robot name="x"><link name="a"/><joint name="j" type="revolute"><parent link="a"/><child link="b"/></joint>'
+     '</robot>', 'Error: Joint [j] is of type REVOLUTE but it does not specify limits')])
+def test_a_urdf_the_parser_refuses_is_one_line_with_what_the_parser_said(config, content, said):
+    """The URDF parser prints its reasons on stderr itself, with its own source locations
+    (``at line 103 in /project/urdfdom/...``): they came before the error line, which was no longer
+    one line. What it says is part of the error now."""
+    (config / 'robots' / 'panda.urdf').write_text(content)
+    code, output, _, _, _ = _bootstrap(_app(config))
+    assert code == 2, output
+    assert output.strip().count('\n') == 0 and output.startswith(
+        f"error: {config / 'robots' / 'panda.yaml'}: urdf: URDF 'panda.urdf' cannot be loaded: "), output
+    assert said in output and 'urdfdom' not in output, output

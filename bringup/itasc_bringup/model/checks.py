@@ -12,7 +12,12 @@ from an include), the path inside it and what was expected.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -160,9 +165,11 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
         raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' not found (relative to this file, "
                           f'or under config/robots; a regular file of at most {MAX_URDF_BYTES} bytes)')
     try:
-        model = load_robot(robot.name, str(urdf), robot.base)
+        with _stderr_kept() as said:
+            model = load_robot(robot.name, str(urdf), robot.base)
     except (ValueError, RuntimeError) as err:
-        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' cannot be loaded: {err}") from None
+        why = ' '.join(f'{err} {said()}'.split())
+        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' cannot be loaded: {why}") from None
     links = [f.name for f in model.model.frames if f.type == pin.FrameType.BODY]
     _unique(where, [loc + ('frames', k, 'name') for k in range(len(robot.frames))],
             [f.name for f in robot.frames], f"frame name on robot '{robot.name}'")
@@ -186,6 +193,27 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
             raise where.error(loc + ('limits', joint), f'lower {lower:g} is above upper {upper:g} '
                               f"(the URDF's: [{model.lower[i]:g}, {model.upper[i]:g}])")
     return str(urdf), model
+
+
+@contextmanager
+def _stderr_kept() -> Iterator[Callable[[], str]]:
+    """What the C++ URDF parser prints on file descriptor 2 (``Error: ... at line 103 in
+    .../urdfdom/...``), kept instead of printed: the model's error stays one line. Yields what it
+    said (its source locations left out), readable after the block. The model is checked before
+    any thread runs, so no other output is held back."""
+    with tempfile.TemporaryFile() as kept:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(kept.fileno(), 2)
+        text: list[str] = []
+        try:
+            yield lambda: ' '.join(text)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            kept.seek(0)
+            said = kept.read().decode(errors='replace')
+            text.append(re.sub(r'\s*at line \d+ in \S+', '', said).strip())
 
 
 def _distinct_joints(where: _Where, program: Program, joints: dict[str, list[str]]) -> None:
