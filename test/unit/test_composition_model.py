@@ -37,6 +37,8 @@ def test_pattern_demo_loads_with_includes(repo_root):
     ('composite: {name: app, entities: [{name: scheduler, kind: K}]}', 'composite', "'scheduler' is the name of"),
     ('composite: {name: app, configure: [fast]}', 'composite', "unknown configuration 'fast'"),
     ('composite: {name: app, running: {initial: x, states: {y: {}}}}', 'composite.running', "initial state 'x'"),
+    ('composite: {name: app, running: {initial: a, states: {a: {raise: [e_go]}}, transitions: [{from: a, to: a, '
+     'when: e_go}]}}', 'composite.running', 'states a -> a would switch forever'),
     ('composite: {name: app, entities: [{include: missing.yaml}]}', 'composite.entities[0].include', 'cannot be read'),
 ])
 def test_wrong_models_name_file_path_and_expectation(tmp_path, text, path, message):

@@ -237,6 +237,35 @@ def test_an_include_with_other_fields_or_no_file_name_is_refused_as_an_include(c
     assert err.message == f'an include is {{include: FILE}} alone (a file name, no other field), got {include!r}'
 
 
+@pytest.mark.parametrize('file, edit, path', [
+    ('apps/approach_object.yaml', lambda a: a['application'].update(rate=True), 'application.rate'),
+    ('tasks/approach_object.yaml', lambda t: t.update(priority=True), 'priority'),
+    ('tasks/approach_object.yaml', lambda t: t.update(weights=[1.0, False]), 'weights')])
+def test_true_or_false_where_a_number_is_expected_is_refused(config, file, edit, path):
+    """Pydantic's lax mode read ``rate: true`` as 1 Hz and ``priority: true`` as level 1."""
+    edit_yaml(config / file, edit)
+    err = refused(_app(config))
+    assert (err.file, err.path) == (str(config / file), path), str(err)
+    assert err.message.startswith('expected a number, got true') or err.message == \
+        'expected numbers, got [1.0, false]', str(err)
+
+
+def test_states_that_leave_each_other_at_once_forever_are_refused(config):
+    """Two states each raising on entry the event that leaves it for the other: the program
+    switched at every pass (177 console lines in 2 s, the rate halved) and the run ended exit 0."""
+    def edit(program: dict) -> None:
+        states = program['running']['states']
+        states['hold']['raise'], states['retreat']['raise'] = ['e_go'], ['e_back']
+        program['running']['transitions'] += [{'from': 'hold', 'to': 'retreat', 'when': 'e_go'},
+                                              {'from': 'retreat', 'to': 'hold', 'when': 'e_back'}]
+    edit_yaml(_program(config), edit)
+    err = refused(_app(config))
+    assert (err.file, err.path, err.message) == (
+        str(_program(config)), 'running.states.hold.raise',
+        'states hold -> retreat -> hold would switch forever: each raises on entry an event that leaves it for the '
+        'next'), str(err)
+
+
 def test_an_object_position_with_nan_is_refused(config):
     edit_yaml(_program(config), lambda p: p['objects'][0]['xyz'].__setitem__(2, math.nan))
     err = refused(_app(config))

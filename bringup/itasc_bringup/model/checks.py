@@ -28,7 +28,7 @@ from itasc_core.communication.event_names import (COMPOSE_FAILED, COMPOSED, JOIN
                                                   SOLVER_STATUSES, event, solver_status)
 from itasc_core.composition.checks import check_outside_event
 from itasc_core.composition.loader import MAX_BYTES, ModelError, format_loc, source_of
-from itasc_core.composition.model import COMPOSITE_NODES
+from itasc_core.composition.model import COMPOSITE_NODES, switching_forever
 from itasc_core.itasc.robot import Robot as RobotModel
 from itasc_drivers.drivers import DrivenRobot
 
@@ -391,6 +391,11 @@ def _running(where: _Where, program: Program, *, outside: Iterable[str] = ()) ->
         for k, name in enumerate(transition.when):
             if name not in events:
                 raise where.error(loc + ('when', k), f"event '{name}' is raised by nobody; raised: {sorted(events)}")
+    cycle = switching_forever({name: state.raise_ for name, state in fsm.states.items()},
+                              [(t.source, t.target, t.when) for t in fsm.transitions])
+    if cycle:
+        raise where.error(('program', 'running', 'states', cycle[0], 'raise'), f"states {' -> '.join(cycle)} would "
+                          'switch forever: each raises on entry an event that leaves it for the next')
 
 
 # -- composition steps ----------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from itasc_core.composition.model import (MAX_RATE, MIN_RATE, OutsideEventModel, RunningStateModel,
                                          RunningTransitionModel)
 from itasc_core.computation.conditions import CONDITIONS
-from itasc_core.computation.parameters import Names, TopicName, partial
+from itasc_core.computation.parameters import Names, TopicName, no_bool_for_number, partial
 from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
@@ -53,6 +53,11 @@ EVENT = r'^e_[A-Za-z0-9_]+$'
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra='forbid', populate_by_name=True, use_attribute_docstrings=True)
+
+    @field_validator('*', mode='before')
+    @classmethod
+    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
+        return no_bool_for_number(cls, value, info)
 
 
 def _as_list(value: Any) -> Any:

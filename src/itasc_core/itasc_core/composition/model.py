@@ -14,12 +14,14 @@ nodes that raise its events (outside events), and the host it runs on (§4.4).
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable, Mapping
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, ValidationInfo,
+                      field_validator, model_validator)
 
 from ..computation.conditions import CONDITIONS
-from ..computation.parameters import problems
+from ..computation.parameters import no_bool_for_number, problems
 from ..kinds import UnknownKind
 
 __all__ = [
@@ -37,6 +39,7 @@ __all__ = [
     'MIN_RATE',
     'MAX_RATE',
     'COMPOSITE_NODES',
+    'switching_forever',
     'walk',
 ]
 
@@ -51,6 +54,11 @@ MIN_RATE, MAX_RATE = 0.01, 100_000.0
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra='forbid', frozen=True, use_attribute_docstrings=True)
+
+    @field_validator('*', mode='before')
+    @classmethod
+    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
+        return no_bool_for_number(cls, value, info)
 
 
 class EntityModel(_Strict):
@@ -136,7 +144,38 @@ class RunningModel(_Strict):
             for end in (t.source, t.target):
                 if end not in self.states:
                     raise ValueError(f"transition names unknown state '{end}'; known: {sorted(self.states)}")
+        cycle = switching_forever({name: state.raise_ for name, state in self.states.items()},
+                                  [(t.source, t.target, t.when) for t in self.transitions])
+        if cycle:
+            raise ValueError(f"states {' -> '.join(cycle)} would switch forever: each raises on entry an event "
+                             'that leaves it for the next')
         return self
+
+
+def switching_forever(raised: Mapping[str, Iterable[str]],
+                      transitions: Iterable[tuple[str, str, Iterable[str]]]) -> list[str]:
+    """A cycle of states of a Running sub-FSM (``raised``: the events each raises on entry;
+    ``transitions``: from, to, when) each left at once by an event it raises on entry (a -> b on
+    ``e_go``, b -> a on ``e_back``, a raising ``e_go``, b ``e_back``: the FSM switched at every
+    pass, the console flooded and the rate halved), or [] when there is none."""
+    at_once: dict[str, list[str]] = {}
+    for source, target, when in transitions:
+        if set(when) & set(raised.get(source, ())):
+            at_once.setdefault(source, []).append(target)
+    done: set[str] = set()
+
+    def walk(state: str, path: list[str]) -> list[str]:
+        if state in path:
+            return path[path.index(state):] + [state]
+        if state in done:
+            return []
+        for target in at_once.get(state, []):
+            cycle = walk(target, path + [state])
+            if cycle:
+                return cycle
+        done.add(state)
+        return []
+    return next((cycle for state in at_once if (cycle := walk(state, []))), [])
 
 
 #: The name of the entity that raises a composite's outside events (reserved when it has some).

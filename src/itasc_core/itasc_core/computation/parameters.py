@@ -23,7 +23,7 @@ import typing
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 from pydantic.fields import FieldInfo
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
@@ -31,7 +31,7 @@ from rclpy.parameter import Parameter
 from ..kinds import derived_model
 
 __all__ = ['ParameterModel', 'NoParameters', 'Names', 'TopicName', 'declarations', 'flatten', 'nest', 'ros_type',
-           'problems', 'partial']
+           'problems', 'partial', 'no_bool_for_number']
 
 _INT64 = 2 ** 63 - 1
 
@@ -49,6 +49,39 @@ class ParameterModel(BaseModel):
         if _has_nan(value):
             raise ValueError(f'NaN is not a value (got {value})')
         return value
+
+    @field_validator('*', mode='before')
+    @classmethod
+    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
+        return no_bool_for_number(cls, value, info)
+
+
+def no_bool_for_number(cls: type[BaseModel], value: Any, info: ValidationInfo) -> Any:
+    """A ``field_validator('*', mode='before')``: ``true``/``false`` where a number is expected is
+    refused (pydantic's lax mode reads them as 1 and 0: ``rate: true`` ran at 1 Hz). For every
+    model read from a file: the entities' parameters, the application and the composition models."""
+    field = cls.model_fields.get(info.field_name) if info.field_name else None
+    if field is None or _admits_bool(field.annotation):
+        return value
+    numbers = _numbers_of(field.annotation)
+    if isinstance(value, bool) and numbers:
+        raise ValueError(f'expected a number, got {str(value).lower()}')
+    if isinstance(value, (list, tuple)) and any(isinstance(v, bool) for v in value) and numbers:
+        raise ValueError(f"expected numbers, got [{', '.join(str(v).lower() for v in value)}]")
+    return value
+
+
+def _admits_bool(annotation: Any) -> bool:
+    if annotation is bool or annotation is Any:
+        return True
+    return any(_admits_bool(arg) for arg in typing.get_args(annotation))
+
+
+def _numbers_of(annotation: Any) -> bool:
+    """Whether ``annotation`` is (or holds) ``int`` or ``float``."""
+    if annotation in (int, float):
+        return True
+    return any(_numbers_of(arg) for arg in typing.get_args(annotation))
 
 
 def _has_nan(value: Any) -> bool:
