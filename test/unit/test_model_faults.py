@@ -819,3 +819,17 @@ def test_a_urdf_the_parser_refuses_is_one_line_with_what_the_parser_said(config,
     assert output.strip().count('\n') == 0 and output.startswith(
         f"error: {config / 'robots' / 'panda.yaml'}: urdf: URDF 'panda.urdf' cannot be loaded: "), output
     assert said in output and 'urdfdom' not in output, output
+
+
+def test_what_is_printed_while_a_urdf_that_loads_is_parsed_is_not_lost(capfd):
+    """The bootstrap checks the model again once DDS threads run (the visualization's topics): what
+    anything prints while a URDF is parsed is held back only when the parse fails, and written out
+    otherwise."""
+    from itasc_bringup.model.checks import _stderr_kept
+    with _stderr_kept() as said:
+        os.write(2, b'a warning of another thread\n')
+    assert capfd.readouterr().err == 'a warning of another thread\n'
+    with pytest.raises(ValueError), _stderr_kept() as said:
+        os.write(2, b'Error: no robot at line 103 in /project/urdfdom/model.cpp\n')
+        raise ValueError('not a URDF')
+    assert capfd.readouterr().err == '' and said() == 'Error: no robot'

@@ -198,22 +198,30 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
 @contextmanager
 def _stderr_kept() -> Iterator[Callable[[], str]]:
     """What the C++ URDF parser prints on file descriptor 2 (``Error: ... at line 103 in
-    .../urdfdom/...``), kept instead of printed: the model's error stays one line. Yields what it
-    said (its source locations left out), readable after the block. The model is checked before
-    any thread runs, so no other output is held back."""
+    .../urdfdom/...``) while the block runs: if the block fails, kept out of the output and handed
+    to its error (yields what was said, its source locations left out), so that the model's error
+    stays one line; if not, written out after it (a warning of the parser, or of another thread:
+    the bootstrap checks the model again once DDS runs), so nothing is lost."""
     with tempfile.TemporaryFile() as kept:
         sys.stderr.flush()
         saved = os.dup(2)
         os.dup2(kept.fileno(), 2)
         text: list[str] = []
+        failed = False
         try:
             yield lambda: ' '.join(text)
+        except BaseException:
+            failed = True
+            raise
         finally:
             os.dup2(saved, 2)
             os.close(saved)
             kept.seek(0)
-            said = kept.read().decode(errors='replace')
-            text.append(re.sub(r'\s*at line \d+ in \S+', '', said).strip())
+            said = kept.read()
+            if failed:
+                text.append(re.sub(r'\s*at line \d+ in \S+', '', said.decode(errors='replace')).strip())
+            elif said:
+                os.write(2, said)
 
 
 def _distinct_joints(where: _Where, program: Program, joints: dict[str, list[str]]) -> None:
