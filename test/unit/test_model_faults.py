@@ -822,9 +822,8 @@ def test_a_urdf_the_parser_refuses_is_one_line_with_what_the_parser_said(config,
 
 
 def test_what_is_printed_while_a_urdf_that_loads_is_parsed_is_not_lost(capfd):
-    """The bootstrap checks the model again once DDS threads run (the visualization's topics): what
-    anything prints while a URDF is parsed is held back only when the parse fails, and written out
-    otherwise."""
+    """What anything prints while a URDF is parsed (the parser's warnings, another thread's output)
+    is held back only when the parse fails, and written out otherwise."""
     from itasc_bringup.model.checks import _stderr_kept
     with _stderr_kept() as said:
         os.write(2, b'a warning of another thread\n')

@@ -55,10 +55,44 @@ AS_CONFIGURED = 'as_configured'
 MAX_URDF_BYTES = 16 * MAX_BYTES
 
 
+@contextmanager
+def _stderr_kept() -> Iterator[Callable[[], str]]:
+    """What the C++ URDF parser prints on file descriptor 2 (``Error: ... at line 103 in
+    .../urdfdom/...``) while the block runs: if the block fails, kept out of the output and handed
+    to its error (yields what was said, its source locations left out), so that the model's error
+    stays one line; if not, written out after it (a warning of the parser, or what another thread
+    wrote meanwhile), so nothing is lost."""
+    with tempfile.TemporaryFile() as kept:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(kept.fileno(), 2)
+        text: list[str] = []
+        failed = False
+        try:
+            yield lambda: ' '.join(text)
+        except BaseException:
+            failed = True
+            raise
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            kept.seek(0)
+            said = kept.read()
+            if failed:
+                text.append(re.sub(r'\s*at line \d+ in \S+', '', said.decode(errors='replace')).strip())
+            elif said:
+                os.write(2, said)
+
+
 @lru_cache(maxsize=32)
 def load_robot(name: str, urdf: str, base: str) -> RobotModel:
-    """The kinematic model of a robot (cached: checks and transform both need it)."""
-    return RobotModel(name, urdf, base=base)
+    """The kinematic model of a robot (cached: checks and transform both need it). What the URDF
+    parser prints on stderr when it refuses the file is part of the error raised, not printed."""
+    try:
+        with _stderr_kept() as said:
+            return RobotModel(name, urdf, base=base)
+    except (ValueError, RuntimeError) as err:
+        raise type(err)(' '.join(f'{err} {said()}'.split())) from None
 
 
 def joint_limits(robots) -> tuple[list[str], dict[str, list[float]]]:
@@ -165,11 +199,9 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
         raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' not found (relative to this file, "
                           f'or under config/robots; a regular file of at most {MAX_URDF_BYTES} bytes)')
     try:
-        with _stderr_kept() as said:
-            model = load_robot(robot.name, str(urdf), robot.base)
+        model = load_robot(robot.name, str(urdf), robot.base)
     except (ValueError, RuntimeError) as err:
-        why = ' '.join(f'{err} {said()}'.split())
-        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' cannot be loaded: {why}") from None
+        raise where.error(loc + ('urdf',), f"URDF '{robot.urdf}' cannot be loaded: {err}") from None
     links = [f.name for f in model.model.frames if f.type == pin.FrameType.BODY]
     _unique(where, [loc + ('frames', k, 'name') for k in range(len(robot.frames))],
             [f.name for f in robot.frames], f"frame name on robot '{robot.name}'")
@@ -193,35 +225,6 @@ def _robot(where: _Where, loc: Loc, robot) -> tuple[str, RobotModel]:
             raise where.error(loc + ('limits', joint), f'lower {lower:g} is above upper {upper:g} '
                               f"(the URDF's: [{model.lower[i]:g}, {model.upper[i]:g}])")
     return str(urdf), model
-
-
-@contextmanager
-def _stderr_kept() -> Iterator[Callable[[], str]]:
-    """What the C++ URDF parser prints on file descriptor 2 (``Error: ... at line 103 in
-    .../urdfdom/...``) while the block runs: if the block fails, kept out of the output and handed
-    to its error (yields what was said, its source locations left out), so that the model's error
-    stays one line; if not, written out after it (a warning of the parser, or of another thread:
-    the bootstrap checks the model again once DDS runs), so nothing is lost."""
-    with tempfile.TemporaryFile() as kept:
-        sys.stderr.flush()
-        saved = os.dup(2)
-        os.dup2(kept.fileno(), 2)
-        text: list[str] = []
-        failed = False
-        try:
-            yield lambda: ' '.join(text)
-        except BaseException:
-            failed = True
-            raise
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            kept.seek(0)
-            said = kept.read()
-            if failed:
-                text.append(re.sub(r'\s*at line \d+ in \S+', '', said.decode(errors='replace')).strip())
-            elif said:
-                os.write(2, said)
 
 
 def _distinct_joints(where: _Where, program: Program, joints: dict[str, list[str]]) -> None:
