@@ -21,7 +21,7 @@ from pydantic import (BaseModel, ConfigDict, Discriminator, Field, Tag, Validati
                       field_validator, model_validator)
 
 from ..computation.conditions import CONDITIONS
-from ..computation.parameters import no_bool_for_number, problems
+from ..computation.parameters import TopicName, no_bool_for_number, problems
 from ..kinds import UnknownKind
 
 __all__ = [
@@ -180,8 +180,6 @@ def switching_forever(raised: Mapping[str, Iterable[str]],
 
 #: The name of the entity that raises a composite's outside events (reserved when it has some).
 OUTSIDE_EVENTS = 'outside_events'
-#: A ROS topic or service name: absolute, relative to the composite's namespace, or private (``~/``).
-_ROS_NAME = r'^(~/|/)?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$'
 
 
 class OutsideEventModel(_Strict):
@@ -193,9 +191,9 @@ class OutsideEventModel(_Strict):
     the installed interfaces before anything starts."""
 
     event: str = Field(pattern=r'^e_[A-Za-z0-9_]+$', description='The event raised in the composite.')
-    topic: str | None = Field(default=None, pattern=_ROS_NAME, description=(
+    topic: TopicName | None = Field(default=None, description=(
         'A topic another node publishes (absolute, or relative to the composite\'s namespace).'))
-    service: str | None = Field(default=None, pattern=_ROS_NAME, description=(
+    service: TopicName | None = Field(default=None, description=(
         'A service the composite offers other nodes (a relative name lies in its namespace).'))
     type: str = Field(min_length=1, description=(
         'The message (topic) or service type: ``pkg/msg/Name``, ``pkg/srv/Name`` or ``pkg/Name``.'))
