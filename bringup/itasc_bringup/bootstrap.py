@@ -303,7 +303,10 @@ def main(argv: list[str] | None = None) -> int:
                 _await_final_states(executor, facts=facts, outcome=outcome, recorder=recorder,
                                     composites=composites)
                 visualization.join()  # a run that ended before Running is shown too
-                if recorder is not None and (missing := _await_first_drawing(executor, visualization, recorder)):
+                # before the first tick there is no joint state to draw the scene from
+                ticked = composer.timer is not None and composer.timer.ticked > 0
+                if recorder is not None and ticked and (missing := _await_first_drawing(executor, visualization,
+                                                                                        recorder)):
                     undrawn.append(f'the recording holds no {", ".join(missing)}: the visualization process did not '
                                    f'draw the 3-D scene within {FIRST_DRAWING_TIMEOUT:g} s of joining')
                 break
@@ -315,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         console.show_safety()
         warnings = list(outcome.warnings()) + undrawn + [
             f'no state of composite {name} was received ({composites[name]}/state): DDS did not discover its process '
-            'in time, the console and the recording miss it' for name in facts.unseen()]
+            'in time, the console and the recording miss it' for name in facts.unseen() if name in outcome.configured]
         for warning in warnings:
             trace.write(f'warning: {warning}')
             print(f'warning: {warning}', file=sys.stderr)
@@ -357,10 +360,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _await_final_states(executor, *, facts, outcome, recorder, composites: dict[str, str]) -> None:
     """Spin until the final state of every composite was seen by the console and written by the
-    recorder, except those a Composer stopped on behalf of a dead process; at most
-    :data:`FINAL_STATES_TIMEOUT` s."""
+    recorder, except those a Composer stopped on behalf of a dead process and those never told to
+    configure (a stop during the bring-up); at most :data:`FINAL_STATES_TIMEOUT` s."""
     def final(name: str) -> bool:
-        if name in outcome.stopped_on_behalf:
+        if name in outcome.stopped_on_behalf or name not in outcome.configured:
             return True
         if not facts.states[name].endswith('NotifyStopped'):
             return False

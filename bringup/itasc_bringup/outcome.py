@@ -24,8 +24,8 @@ from typing import Iterable
 
 from rclpy.node import Node
 
-from itasc_core.communication.event_names import (CONNECTION_REFUSED, NOTHING_RECEIVED, SAFETY_EVENT, STOP_REQUESTED,
-                                                  STOPPED, owner_of)
+from itasc_core.communication.event_names import (CONFIGURE, CONNECTION_REFUSED, NOTHING_RECEIVED, SAFETY_EVENT,
+                                                  STOP_REQUESTED, STOPPED, owner_of)
 from itasc_core.communication.events import EventListener, events_topic
 
 __all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY', 'EXIT_RECOVERED']
@@ -66,6 +66,8 @@ class RunOutcome:
         self.faults: list[Fault] = []
         #: composites a Composer reported stopped in their place (their process had died)
         self.stopped_on_behalf: set[str] = set()
+        #: composites told to configure (by the bootstrap, the root; by its parent, any other)
+        self.configured: set[str] = set()
         #: composites seen in Safety, with the time each was first seen there
         self.in_safety: dict[str, float] = {}
         #: composites in Safety that did not reach Running again since
@@ -87,6 +89,8 @@ class RunOutcome:
             self.stop_request = msg.detail or msg.source
         elif _is_fault(msg.name):
             self.faults.append(Fault(composite, msg.name, msg.source, msg.detail, time.monotonic()))
+        elif owner_of(msg.name, CONFIGURE) in self._names:
+            self.configured.add(owner_of(msg.name, CONFIGURE))
         elif owner_of(msg.name, STOPPED) is not None and msg.source.endswith('/composer'):
             child = owner_of(msg.name, STOPPED)
             if child in self._names:

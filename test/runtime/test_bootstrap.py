@@ -230,6 +230,30 @@ def test_a_stop_right_at_running_waits_until_the_bootstrap_heard_of_every_compos
     assert 'no state of composite' not in app.err, app.output()
 
 
+def test_a_ctrl_c_during_the_bring_up_waits_for_nothing_that_never_started(tmp_path):
+    """A Ctrl-C while the root deploys (here: waits for its child's process to listen) stops it
+    before any child was told to configure: they never leave the state they were created in, which
+    they do not publish, and no tick ran that the visualization could draw. Before, the bootstrap
+    waited 3 s for their final states and 10 s for a drawing, then blamed DDS for not discovering
+    their processes (15.7 s to exit, 5 warnings)."""
+    from itasc_bringup.visualization import FIRST_DRAWING_TIMEOUT
+    bag = tmp_path / 'run'
+    with Spawned([*BOOTSTRAP, 'approach_object', '--deploy', 'per-composite', '--record', str(bag)]) as app:
+        app.wait_for_line('[state] approach_object: Active.Configure.Configuring.DeployEntities', timeout=120)
+        app.process.send_signal(signal.SIGINT)
+        asked = time.monotonic()
+        assert app.finish(timeout=60) == 0, app.output()
+        took = time.monotonic() - asked
+    assert 'approach_object: stopped (signal SIGINT)' in app.out
+    assert 'warning' not in app.err, app.output()
+    assert took < FIRST_DRAWING_TIMEOUT, app.output()
+    from rosbags.highlevel import AnyReader
+    with AnyReader([bag]) as reader:
+        states = [reader.deserialize(raw, c.msgtype).state for c, _, raw in reader.messages(
+            [c for c in reader.connections if c.topic == '/approach_object/state'])]
+    assert states[-1] == 'Active.Stop.Stopped.NotifyStopped', states
+
+
 def test_a_composite_dying_right_after_running_is_a_fault_while_running_not_a_failed_start():
     """The bootstrap looks at its state between housekeeping passes; a Safety right after the root
     reached Running was taken for a failed start (exit 2, '0.0 s in Running') when the pass that
