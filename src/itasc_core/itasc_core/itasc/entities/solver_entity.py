@@ -4,7 +4,13 @@ Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/Cons
 sample per connected Task, :class:`.messages.RowsSample`): the newest of each Task in this process
 counts if it is of the current tick; that of a Task in another process (``--deploy per-composite``)
 crosses DDS and comes a tick or more after the tick that triggered it, so it counts while it is at
-most ``remote_rows_age`` old, unless this process switched its composite off. A Task the
+most ``remote_rows_age`` old, unless this process switched its composite off. Rows from other
+processes arrive one by one: of those, the Solver takes the newest tick every such Task has
+rows of (it keeps each one's last :data:`REMOTE_TICKS_KEPT`), not the newest of each. Rows of
+two ticks describe two configurations, and one Task's row is then no longer quite in the row space
+of another's: a higher-priority inequality (an obstacle distance) that the configuration leaves no
+redundancy for was met by a joint velocity hundreds of times the task's (one tick at a joint's
+velocity limit, the next back, now and then in a per-composite run). A Task the
 Coordinator deactivated writes rows of none and drops out at once; one that stops computing drops
 out when its rows get too old. It solves the prioritised problem with the configured solver (a
 registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least squares with
@@ -46,7 +52,11 @@ from ..solver.problem import ConstraintRows
 from .messages import PROGRAM_VELOCITIES, ROWS_SEMANTICS, JointSample, RowsSample, SolverStatusSample
 from .scene_entity import PROGRAM_JOINTS
 
-__all__ = ['SolverEntity', 'SolverSettings']
+__all__ = ['SolverEntity', 'SolverSettings', 'REMOTE_TICKS_KEPT']
+
+#: How many of its last ticks' rows the Solver keeps of each Task in another process, to find
+#: a tick all of them computed (a Task process a few ticks behind the others is not waited for).
+REMOTE_TICKS_KEPT = 4
 
 
 class SolverSettings(ParameterModel):
@@ -126,6 +136,8 @@ class SolverEntity(FunctionalEntity):
                                                   position_limit_gain=params.position_limit_gain)
         self.period = params.period
         self.remote_rows_age = params.remote_rows_age
+        #: per topic of a Task in another process: its last rows by tick
+        self._remote_ticks: dict[str, dict[float, RowsSample]] = {}
         self._last_t: float | None = None
         self._dt = self.period
         self.status = 'ok'
@@ -172,13 +184,34 @@ class SolverEntity(FunctionalEntity):
         """The rows that count in this tick (see the module's docstring), in Scene order."""
         port = self.inputs['rows']
         fresh, remote_fresh = t - 1.5 * self._dt, t - self.remote_rows_age
-        rows = []
+        samples, remote = [], {}
         for topic, sample in port.samples.items():
-            if sample.rows == 0 or sample.t < (remote_fresh if topic in port.remote else fresh) \
-                    or port.switched_off(topic):
+            if sample.t < (remote_fresh if topic in port.remote else fresh) or port.switched_off(topic):
                 continue
-            rows.append(self._problem_rows(sample))
-        return rows
+            if topic in port.remote:
+                remote[topic] = sample
+            else:
+                samples.append(sample)
+        samples += self._one_tick(remote)
+        return [self._problem_rows(sample) for sample in samples if sample.rows]
+
+    def _one_tick(self, newest: dict[str, RowsSample]) -> list[RowsSample]:
+        """The rows of the newest tick that every Task of ``newest`` (topic -> its newest rows,
+        from other processes) has rows of; the newest of each if they have no tick in common."""
+        for topic in [t for t in self._remote_ticks if t not in newest]:  # gone, switched off or stale
+            del self._remote_ticks[topic]
+        for topic, sample in newest.items():
+            ticks = self._remote_ticks.setdefault(topic, {})
+            ticks[sample.t] = sample
+            while len(ticks) > REMOTE_TICKS_KEPT:
+                del ticks[next(iter(ticks))]
+        if len(newest) < 2:
+            return list(newest.values())
+        common = set.intersection(*(set(self._remote_ticks[topic]) for topic in newest))
+        if not common:
+            return list(newest.values())
+        tick = max(common)
+        return [self._remote_ticks[topic][tick] for topic in newest]
 
     def _problem_rows(self, sample: RowsSample) -> ConstraintRows:
         J = sample.jacobian
