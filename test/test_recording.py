@@ -4,12 +4,13 @@ our own itasc_msgs types, and that stay readable when the recording process is s
 import os
 import pathlib
 import signal
+import subprocess
 import sys
 import textwrap
 import time
 
 import pytest
-from processes import Spawned
+from processes import Spawned, started_here
 from ros_client import spin_until
 
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 101))  # conftest.py normally sets it
@@ -477,3 +478,49 @@ def test_a_stalled_writer_process_blocks_no_write_and_loses_no_message(tmp_path)
     _, messages = _read_all(tmp_path / 'run.mcap')
     assert [m.data[:6] for _, _, m in messages] == [f'{k:06d}' for k in range(count)]
     assert [t for _, t, _ in messages] == [1_000 + k for k in range(count)]
+
+
+def test_a_recording_is_refused_before_anything_starts_where_it_would_overwrite_or_cannot_be_written(tmp_path):
+    """--record onto an existing .mcap file overwrote it (exit 0), and into a folder that cannot be
+    made the bootstrap died with a traceback (exit 1); both are refused now, with one line, exit 2,
+    the file as it was."""
+    kept = tmp_path / 'kept.mcap'
+    kept.write_bytes(b'a recording of yesterday')
+    not_a_folder = tmp_path / 'notes.txt'
+    not_a_folder.write_text('mine')
+    for target, why in ((kept, ' exists already; a recording never overwrites a file'),
+                        (not_a_folder / 'run', ': no recording can be written there ('),
+                        (not_a_folder / 'run.mcap', ': no recording can be written there (')):
+        result = subprocess.run([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--duration', '1',
+                                 '--record', str(target)], capture_output=True, text=True, timeout=120)
+        assert result.returncode == 2, result.stdout + result.stderr
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f'error: --record: {target}{why}'), result.stderr
+        assert 'Traceback' not in result.stderr and 'Running' not in result.stdout
+    assert kept.read_bytes() == b'a recording of yesterday'
+    assert not_a_folder.read_text() == 'mine'
+
+
+def test_a_recording_process_that_dies_while_the_run_goes_on_is_said_and_exits_5(tmp_path):
+    """The recording process killed (as the OOM killer or a full disk would end it): before, the run
+    ended with exit 0 and named the broken file as its recording. Now a warning comes at once and
+    with the verdict, the exit code is 5, and itasc-recover reads what was written until then."""
+    from itasc_bringup.recording.recover import recover
+
+    mcap = tmp_path / 'run.mcap'
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--duration', '3',
+                  '--record', str(mcap)]) as app:
+        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
+        time.sleep(1.5)  # more than a flush period of the writer: a chunk is on disk
+        writers = list(started_here(command='recording.writer'))
+        assert len(writers) == 1, writers
+        os.kill(writers[0], signal.SIGKILL)
+        assert app.finish(timeout=60) == 5, app.output()
+    assert 'warning: --record: the recording process was killed (signal 9) while the run went on' in app.out
+    assert f'warning: the recording {mcap} is incomplete: the recording process was killed (signal 9)' in app.err
+    assert app.out.strip().splitlines()[-1].startswith(
+        'approach_object: stopped (duration, recording incomplete) - exit 5'), app.output()
+    messages, cut_off = recover(mcap, tmp_path / 'recovered.mcap')
+    assert cut_off and messages > 100
+    _, recovered = _read_all(tmp_path / 'recovered.mcap')
+    assert any(topic == '/approach_object/itasc/Solver/command' for topic, _, _ in recovered)

@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     from itasc_core.entity import CompositeContext
 
     from .console import RunFacts, TraceFile, Watch, task_specs
-    from .outcome import EXIT_ERROR, RunOutcome
+    from .outcome import EXIT_ERROR, EXIT_OK, EXIT_RECORDING, RunOutcome
 
     if stop_requested:  # nothing started yet
         print(f'{model.name}: stopped ({stop_requested[0]}) before the bring-up began - exit 0')
@@ -186,13 +186,13 @@ def main(argv: list[str] | None = None) -> int:
             from itasc_core.communication.qos import EVENT_QOS, STATE_QOS
 
             from .apps import resolve_app
-            from .recording.bag import APPLICATION_KEY, DEPLOY_KEY, BagExists
+            from .recording.bag import APPLICATION_KEY, DEPLOY_KEY, CannotRecord, mcap_path_of
             from .recording.recorder import Recorder
             try:  # the model file goes into the bag: itasc-replay finds it there
                 recorder = Recorder(path=args.record, prefix=root.namespace,
                                     custom_data={APPLICATION_KEY: str(resolve_app(args.app).resolve()),
                                                  DEPLOY_KEY: args.deploy})
-            except BagExists as err:
+            except CannotRecord as err:
                 print(f'error: --record: {err}', file=sys.stderr)
                 return 2
             for path, _ in walk(model):  # every event of the bring-up, not only those after discovery
@@ -254,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         code = None
         failed_start = False
         housekeeping_at = 0.0
+        recording_lost: str | None = None
 
         def between_changed(spinning: bool, share: float) -> None:
             if share:  # not when the hierarchy stopped computing
@@ -270,6 +271,8 @@ def main(argv: list[str] | None = None) -> int:
             if outcome.stop_request is not None and not stop_requested:  # an operator's ~/stop
                 stop_requested.append(f'~/stop: {outcome.stop_request}')
             runtime.reap()
+            if recorder is not None and recording_lost is None and (recording_lost := recorder.failure):
+                console.show(f'warning: --record: {recording_lost}: nothing more is recorded')
             watch.poll(composer.timer)
             console.show_safety()
             for line in waits.due():
@@ -316,7 +319,13 @@ def main(argv: list[str] | None = None) -> int:
                 break
         watch.poll(composer.timer)  # the last ticks' samples, for the summary
         console.show_safety()
-        warnings = list(outcome.warnings()) + undrawn + [
+        if recorder is not None:  # finished before the verdict, which says whether it is whole
+            recorder.close()
+            recording_lost = recorder.failure
+        lost = [] if recording_lost is None else [
+            f'the recording {args.record} is incomplete: {recording_lost}; what it wrote until then can be read '
+            f'after itasc-recover {mcap_path_of(pathlib.Path(args.record))}']
+        warnings = list(outcome.warnings()) + undrawn + lost + [
             f'no state of composite {name} was received ({composites[name]}/state): DDS did not discover its process '
             'in time, the console and the recording miss it' for name in facts.unseen() if name in outcome.configured]
         for warning in warnings:
@@ -328,6 +337,8 @@ def main(argv: list[str] | None = None) -> int:
         elif outcome.went_through_safety:
             how += ', went through Safety' + (', recovered' if outcome.recovered else '')
         code = outcome.exit_code(reached_running=not failed_start) if code is None else code
+        if lost and code == EXIT_OK:
+            code, how = EXIT_RECORDING, how + ', recording incomplete'
         _finish(console, args, facts=facts, app=root.name, how=how, exit_code=code, trace=trace,
                 safety=outcome.safety_line() if outcome.went_through_safety else None,
                 running_for=ran_for, up_after=None if running_since is None else running_since - started,

@@ -13,7 +13,9 @@ Exit codes of the bootstrap: :data:`EXIT_OK` for an orderly stop from Running, :
 when the run ended in Safety (or stopped from it), :data:`EXIT_RECOVERED` when it went through
 Safety, every composite was recovered to Running, and it stopped in order from there,
 :data:`EXIT_NOT_STARTED` for a wrong model or a failure before the root reached Running (what was
-started is stopped in order first), :data:`EXIT_ERROR` when the hierarchy did not stop in time.
+started is stopped in order first), :data:`EXIT_ERROR` when the hierarchy did not stop in time,
+:data:`EXIT_RECORDING` for a run that would have exited 0 but whose ``--record`` recording is
+incomplete (its process failed or ended early: the run's verdict stands, the recording does not).
 """
 
 from __future__ import annotations
@@ -28,13 +30,15 @@ from itasc_core.communication.event_names import (CONFIGURE, CONNECTION_REFUSED,
                                                   STOP_REQUESTED, STOPPED, owner_of)
 from itasc_core.communication.events import EventListener, events_topic
 
-__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY', 'EXIT_RECOVERED']
+__all__ = ['Fault', 'RunOutcome', 'EXIT_OK', 'EXIT_ERROR', 'EXIT_NOT_STARTED', 'EXIT_SAFETY', 'EXIT_RECOVERED',
+           'EXIT_RECORDING']
 
 EXIT_OK = 0
 EXIT_ERROR = 1
 EXIT_NOT_STARTED = 2
 EXIT_SAFETY = 3
 EXIT_RECOVERED = 4
+EXIT_RECORDING = 5
 
 
 @dataclass(frozen=True)
@@ -89,8 +93,8 @@ class RunOutcome:
             self.stop_request = msg.detail or msg.source
         elif _is_fault(msg.name):
             self.faults.append(Fault(composite, msg.name, msg.source, msg.detail, time.monotonic()))
-        elif owner_of(msg.name, CONFIGURE) in self._names:
-            self.configured.add(owner_of(msg.name, CONFIGURE))
+        elif (told := owner_of(msg.name, CONFIGURE)) is not None and told in self._names:
+            self.configured.add(told)
         elif owner_of(msg.name, STOPPED) is not None and msg.source.endswith('/composer'):
             child = owner_of(msg.name, STOPPED)
             if child in self._names:

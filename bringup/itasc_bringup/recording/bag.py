@@ -28,7 +28,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 
 from .definitions import definition, type_hash
 
-__all__ = ['BagWriter', 'BagExists', 'bag_metadata', 'qos_profiles', 'mcap_path_of', 'METADATA_VERSION', 'ROS_DISTRO',
+__all__ = ['BagWriter', 'BagExists', 'CannotRecord', 'bag_metadata', 'qos_profiles', 'mcap_path_of',
+           'prepare_recording', 'METADATA_VERSION', 'ROS_DISTRO',
            'APPLICATION_KEY', 'DEPLOY_KEY']
 
 #: The key of a bag's ``custom_data`` that holds the application model file it was recorded from.
@@ -41,8 +42,14 @@ ROS_DISTRO = 'jazzy'
 _COMPRESSION = {'none': CompressionType.NONE, 'lz4': CompressionType.LZ4, 'zstd': CompressionType.ZSTD}
 
 
-class BagExists(FileExistsError):
-    """The bag folder exists and is not empty: a recording never overwrites another."""
+class CannotRecord(OSError):
+    """No recording can be written where it was asked for (a folder that cannot be made, a file
+    that cannot be created)."""
+
+
+class BagExists(CannotRecord, FileExistsError):
+    """The bag folder exists and is not empty, or the MCAP file exists: a recording never
+    overwrites another."""
 
 
 def _duration(duration: Any) -> dict[str, int]:
@@ -108,15 +115,29 @@ def bag_metadata(*, file_name: str, topics: list[dict[str, Any]], start_ns: int,
 
 
 def mcap_path_of(path: Path) -> Path:
-    """The MCAP file of the recording ``path`` (a bag folder, or a ``.mcap`` file), its folder
-    made; raises :class:`BagExists` for a folder that is not new or empty."""
-    if path.suffix == '.mcap':
-        mcap = path
-    else:
-        if path.exists() and (not path.is_dir() or any(path.iterdir())):
+    """The MCAP file of the recording ``path``: ``path`` itself if it ends in ``.mcap``, else the
+    bag folder's ``<name>_0.mcap``."""
+    return path if path.suffix == '.mcap' else path / f'{path.name}_0.mcap'
+
+
+def prepare_recording(path: Path) -> Path:
+    """The MCAP file of the new recording ``path``, created empty with its folders, before
+    anything is recorded; raises :class:`BagExists` where it would overwrite a recording or a file
+    (a bag folder that is not new or empty, an existing ``.mcap`` file), :class:`CannotRecord`
+    where nothing can be written (the error of the file system in words)."""
+    mcap = mcap_path_of(path)
+    try:
+        if path.suffix == '.mcap' and (path.exists() or path.is_symlink()):
+            raise BagExists(f'{path} exists already; a recording never overwrites a file')
+        if path.suffix != '.mcap' and path.exists() and (not path.is_dir() or any(path.iterdir())):
             raise BagExists(f'{path} exists already; a bag is written into a new (or empty) folder')
-        mcap = path / f'{path.name}_0.mcap'
-    mcap.parent.mkdir(parents=True, exist_ok=True)
+        mcap.parent.mkdir(parents=True, exist_ok=True)
+        with open(mcap, 'xb'):
+            pass
+    except BagExists:
+        raise
+    except OSError as err:
+        raise CannotRecord(f'{path}: no recording can be written there ({err.strerror or err})') from None
     return mcap
 
 
@@ -124,11 +145,12 @@ class BagWriter:
     """Writes one recording: a bag folder, or a bare MCAP file when ``path`` ends in ``.mcap``."""
 
     def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup',
-                 custom_data: Mapping[str, str] | None = None) -> None:
+                 custom_data: Mapping[str, str] | None = None, prepared: bool = False) -> None:
+        """``prepared``: :func:`prepare_recording` made its empty MCAP file already."""
         path = Path(path)
         self.custom_data = dict(custom_data or {})
         self.folder: Path | None = None if path.suffix == '.mcap' else path
-        self.mcap_path = mcap_path_of(path)
+        self.mcap_path = mcap_path_of(path) if prepared else prepare_recording(path)
         self._stream = open(self.mcap_path, 'wb')
         self._writer = Writer(self._stream, compression=_COMPRESSION[compression])
         self._writer.start(profile='ros2', library=library)

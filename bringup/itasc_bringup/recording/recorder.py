@@ -349,6 +349,11 @@ class Recorder(Node):
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def failure(self) -> str | None:
+        """Why the recording is incomplete (see :attr:`~.writer.BagProcess.failure`), None while it is not."""
+        return self._bag.failure
+
     def close(self) -> None:
         """Finish the bag (MCAP summary and footer, metadata.yaml) and close it. Safe to call any
         number of times, from any thread, before or after the node or its context is destroyed."""

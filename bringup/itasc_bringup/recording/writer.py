@@ -67,12 +67,12 @@ class BagProcess:
 
     def __init__(self, path: str | os.PathLike, *, compression: str = 'zstd', library: str = 'itasc_bringup',
                  custom_data: Mapping[str, str] | None = None) -> None:
-        from .bag import mcap_path_of
-        mcap_path_of(Path(path))  # BagExists, and the folder made, here: before anything starts
+        from .bag import prepare_recording
+        prepare_recording(Path(path))  # BagExists or CannotRecord here, before anything starts
         custom = [arg for key, value in (custom_data or {}).items() for arg in ('--custom-data', f'{key}={value}')]
         self._process = subprocess.Popen(
-            [sys.executable, '-c', _MAIN, os.fspath(path), '--compression', compression, '--library', library,
-             *custom], stdin=subprocess.PIPE, start_new_session=True)
+            [sys.executable, '-c', _MAIN, os.fspath(path), '--prepared', '--compression', compression,
+             '--library', library, *custom], stdin=subprocess.PIPE, start_new_session=True)
         self._fd = self._process.stdin.fileno()
         try:  # room for a few batches: the writer catches up between them
             fcntl.fcntl(self._fd, fcntl.F_SETPIPE_SZ, PIPE_SIZE)
@@ -106,6 +106,18 @@ class BagProcess:
             self._flush_pending()
         elif self._unsent:
             self._send_what_fits()
+
+    @property
+    def failure(self) -> str | None:
+        """Why the recording is incomplete (its process ended before it was closed, or failed),
+        None while it is not."""
+        code = self._process.poll()
+        if code is None:
+            return 'the recording process does not take what is recorded' if self._broken else None
+        if code == 0 and self.closed:
+            return None
+        how = f'was killed (signal {-code})' if code < 0 else f'failed (exit code {code})' if code else 'ended'
+        return f'the recording process {how}' + ('' if self.closed else ' while the run went on')
 
     @property
     def unsent(self) -> int:
@@ -211,31 +223,50 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('path')
+    parser.add_argument('--prepared', action='store_true', help='its empty MCAP file was made (prepare_recording)')
     parser.add_argument('--compression', default='zstd')
     parser.add_argument('--library', default='itasc_bringup')
     parser.add_argument('--custom-data', action='append', default=[], metavar='KEY=VALUE')
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the recording process closes the bag, or its end does
-    bag = BagWriter(args.path, compression=args.compression, library=args.library,
-                    custom_data=dict(item.split('=', 1) for item in args.custom_data))
+    try:
+        bag = BagWriter(args.path, compression=args.compression, library=args.library, prepared=args.prepared,
+                        custom_data=dict(item.split('=', 1) for item in args.custom_data))
+    except OSError as err:
+        print(f'error: recording {args.path}: {err}', file=sys.stderr)
+        return 1
+    failure: OSError | None = None
+    try:
+        _write(bag, sys.stdin.fileno())
+    except OSError as err:  # the disk full, the file system gone: what was flushed before stays
+        failure = err
+    try:
+        bag.close()
+    except OSError as err:
+        failure = failure or err
+    if failure is not None:
+        print(f'error: recording {args.path}: {failure.strerror or failure}; what was written until then can be '
+              f'read after itasc-recover {bag.mcap_path}', file=sys.stderr)
+        return 1
+    return 0
+
+
+def _write(bag, fd: int) -> None:
+    """Write the frames on ``fd`` into ``bag`` until the pipe ends or says CLOSE."""
     channels: dict[int, int] = {}
     flushed = time.monotonic()
-    try:
-        for kind, payload in _frames(sys.stdin.fileno()):
-            if kind == TOPIC:
-                key, topic, type_name, profiles = pickle.loads(payload)
-                channels[key] = bag.add_topic(topic, type_name, profiles=profiles)
-            elif kind == MESSAGES:
-                for key, log_ns, publish_ns, data in _records(payload):
-                    bag.write(channels[key], data, time_ns=log_ns, publish_time_ns=publish_ns)
-            elif kind == CLOSE:
-                break
-            if kind == FLUSH or time.monotonic() - flushed > FLUSH_PERIOD:
-                bag.flush()
-                flushed = time.monotonic()
-    finally:
-        bag.close()
-    return 0
+    for kind, payload in _frames(fd):
+        if kind == TOPIC:
+            key, topic, type_name, profiles = pickle.loads(payload)
+            channels[key] = bag.add_topic(topic, type_name, profiles=profiles)
+        elif kind == MESSAGES:
+            for key, log_ns, publish_ns, data in _records(payload):
+                bag.write(channels[key], data, time_ns=log_ns, publish_time_ns=publish_ns)
+        elif kind == CLOSE:
+            return
+        if kind == FLUSH or time.monotonic() - flushed > FLUSH_PERIOD:
+            bag.flush()
+            flushed = time.monotonic()
 
 
 if __name__ == '__main__':
