@@ -171,3 +171,24 @@ def test_a_model_without_the_recorded_program_is_a_clear_error(recorded):
     code, out = _replay(recorded, '--app', 'pattern_demo')
     assert code == 2, out
     assert 'error:' in out and 'Traceback' not in out, out
+
+
+def test_a_run_whose_commands_carry_no_stamp_is_a_clear_error(tmp_path):
+    """pattern_demo (a composition model of the pattern's own kinds) commands a Float64MultiArray:
+    the ticks cannot be told from its recording. Before, the replay ended in an AttributeError
+    traceback with exit 1 (the code of a difference past the tolerance)."""
+    bag = tmp_path / 'pattern'
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--duration', '1', '--record', str(bag)]) as app:
+        assert app.finish(timeout=120) == 0, app.output()
+    code, out = _replay(bag)
+    assert code == 2, out
+    assert "program's command (/app/program/mixer/sum, std_msgs/msg/Float64MultiArray) carries no stamp" in out, out
+    assert 'Traceback' not in out, out
+
+
+@pytest.mark.parametrize('tolerance', ['-1', 'nan', 'inf'])
+def test_a_tolerance_that_no_difference_can_meet_or_that_any_meets_is_refused(recorded, tolerance):
+    """Before, -1 and nan replayed the run and failed it whatever it computed (exit 1)."""
+    code, out = _replay(recorded, f'--tolerance={tolerance}')
+    assert code == 2, out
+    assert '--tolerance must be a finite number >= 0' in out, out

@@ -146,6 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--tolerance', type=float, default=1e-9,
                         help="largest allowed difference of a command (rad/s), a Task's error or rows (default 1e-9)")
     args = parser.parse_args(argv)
+    if not args.tolerance >= 0.0 or args.tolerance == float('inf'):  # NaN too
+        parser.error(f'--tolerance must be a finite number >= 0, not {args.tolerance:g}')
     from itasc_core.composition.loader import ModelError
     try:
         if not args.bag.exists():

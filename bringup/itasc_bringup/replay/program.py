@@ -79,11 +79,16 @@ class Plan:
 def plan_of(model: CompositeModel) -> Plan:
     root = CompositeContext(name=model.name, namespace=f'/{model.name}')
     programs = [e for e in map(model.entity, model.schedule_order()) if isinstance(e, CompositeModel)]
-    commands = {p.name: port_of(model, root.namespace, f'{p.name}.command')[0].id
-                for p in programs if 'command' in p.exports}
-    if not commands:
+    ports = {p.name: port_of(model, root.namespace, f'{p.name}.command')[0] for p in programs if 'command' in p.exports}
+    if not ports:
         raise ReplayError(f'model {model.name} has no constraint-based program (no composite of its root '
                           "exports a 'command')")
+    for name, spec in ports.items():  # the ticks are told by the stamps of the commands
+        if not is_stamped(spec.msg_type_name):
+            raise ReplayError(f"model {model.name}: {name}'s command ({spec.id}, {spec.msg_type_name}) carries no "
+                              'stamp, so the recording cannot tell its ticks; itasc-replay replays programs whose '
+                              "command is stamped, as a constraint-based program's Solver's is")
+    commands = {name: spec.id for name, spec in ports.items()}
     names = {p.name for p in programs}
     feeds, bindings = {}, []
     for connection in model.connections:
