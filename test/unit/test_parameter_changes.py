@@ -45,7 +45,7 @@ def spin(node, until, timeout: float = 5.0) -> None:
     ('kind', 'p', 'Trying to set a read-only parameter: kind.'),  # another law is another entity (a swap)
     ('max_output', 0.0, 'max_output: Input should be greater than 0'),
     ('kp', 'fast', "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'"),
-    ('kp', float('inf'), 'kp: Input should be a finite number'),  # rclpy's range [0, inf] lets it through
+    ('kp', float('inf'), 'kp: not a finite number (infinite where it was finite)'),  # rclpy's range allows it
     ('task', 'U', 'Trying to set a read-only parameter: task.'),  # its ports' semantics are made from it
 ])
 def test_a_value_the_model_refuses_is_refused_recorded_and_changes_nothing(controller, name, value, reason):
@@ -483,4 +483,63 @@ def test_a_monitor_switched_on_by_its_event_stays_on_when_its_threshold_is_tuned
         assert monitor.raised == 1  # off: the condition starting to hold again raised nothing
     finally:
         monitor.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_an_infinity_is_refused_where_the_value_was_finite_and_one_the_model_gave_may_stay():
+    """A model file holds finite numbers only; set while running, Solver.velocity_limit .inf let the
+    Solver command 208 rad/s, regularization .inf made every problem infeasible (Safety blaming a
+    Task) and a setpoint's duration .inf froze the robot for good. An infinity the model gave (a
+    joint its URDF leaves unbounded, as a mobile base's) stays settable as it is."""
+    from itasc_core.itasc.entities import SolverEntity
+    from itasc_tasks.entities import SetpointGeneratorEntity
+    parameters = _approach_object_parameters()['Solver']
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    context = CompositeContext(name='itasc', namespace='/changes/itasc')
+    unbounded = dict(parameters, velocity_limit=[math.inf] + list(parameters['velocity_limit'][1:]))
+    solver = SolverEntity('Solver', composite=context, parameters=unbounded)
+    spg = SetpointGeneratorEntity('SPG', composite=TASK, parameters={
+        'kind': 'minimum_jerk', 'value': [0.0], 'duration': 2.0})
+    try:
+        limits = list(unbounded['velocity_limit'])
+        for entity, name, value in ((solver, 'velocity_limit', [math.inf] * len(limits)),
+                                    (solver, 'regularization', math.inf), (spg, 'duration', math.inf)):
+            (result,) = entity.set_parameters([Parameter(name, value=value)])
+            assert (result.successful, result.reason) == (
+                False, f'{name}: not a finite number (infinite where it was finite)')
+        assert solver.velocity_limit[1:].tolist() == limits[1:] and spg.params.duration == 2.0
+        (result,) = solver.set_parameters([Parameter('velocity_limit', value=[math.inf, *[0.5] * (len(limits) - 1)])])
+        assert result.successful, result.reason
+        assert solver.velocity_limit[0] == math.inf and solver.velocity_limit[1:].tolist() == [0.5] * (len(limits) - 1)
+    finally:
+        solver.destroy_node()
+        spg.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_a_monitor_that_raises_safety_is_not_switched_off_from_outside():
+    """A Driver's watchdog (Driver_<robot>_silent) switched off with ros2 param set left the
+    application Running 14 s after its driver died. A Monitor raising e_emergency is a safety
+    function: switched off from outside it is not (a configuration of the model may)."""
+    from sensor_msgs.msg import JointState
+    from itasc_core.communication.ports import PortSpec
+    from itasc_core.computation.monitor import Monitor
+    watch = PortSpec(name='joint_state', direction='output', msg_type=JointState, type='joint_state',
+                     semantics='JointPositions(arm)', id='/changes/T/Driver/joint_state')
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    watchdog = Monitor('Driver_arm_silent', composite=TASK, watch=watch, parameters={
+        'condition': 'stale', 'timeout': 0.25, 'event': 'e_emergency'})
+    try:
+        (result,) = watchdog.set_parameters([Parameter('enabled', value=False)])
+        assert (result.successful, result.reason) == (
+            False, 'Driver_arm_silent raises e_emergency: a safety function is not switched off from outside while '
+                   'it runs')
+        assert watchdog.enabled
+        (result,) = watchdog.set_parameters([Parameter('timeout', value=0.5)])
+        assert result.successful, result.reason
+        with watchdog.set_by('configuration maintenance'):
+            (result,) = watchdog.set_parameters([Parameter('enabled', value=False)])
+        assert result.successful and not watchdog.enabled
+    finally:
+        watchdog.destroy_node()
         rclpy.try_shutdown()

@@ -11,7 +11,8 @@ its input ports, writes its output ports and raises events (§3.1, boundary of k
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+import math
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any, ClassVar
 
@@ -25,7 +26,11 @@ from ..entity import CompositeContext, Entity
 from ..kinds import UnknownKind
 from .parameters import NoParameters, ParameterModel, declarations, flatten, nest, problems
 
-__all__ = ['FunctionalEntity']
+__all__ = ['FunctionalEntity', 'OUTSIDE']
+
+
+#: Who set parameters that no configuration of the model set (``ros2 param set``, an operator's tool).
+OUTSIDE = 'set from outside'
 
 
 class FunctionalEntity(Entity):
@@ -38,7 +43,7 @@ class FunctionalEntity(Entity):
     #: The model of the entity's parameters (:mod:`.parameters`).
     Parameters: ClassVar[type[ParameterModel]] = NoParameters
     #: Who sets parameters now (see :meth:`set_by`).
-    cause: str = 'set from outside'
+    cause: str = OUTSIDE
 
     def __init__(self, name: str, *, composite: CompositeContext, parameters: Mapping[str, Any] | None = None) -> None:
         super().__init__(name, composite=composite)
@@ -152,7 +157,12 @@ class FunctionalEntity(Entity):
         if not parameters:
             self._configured = self.params
             return SetParametersResult(successful=True)
-        proposed = flatten(self.params) | {p.name: p.value for p in parameters}
+        current = flatten(self.params)
+        infinite = [p.name for p in parameters if _newly_infinite(current.get(p.name), p.value)]
+        if infinite:  # as in a model file; an infinity the model gave (a joint unbounded in its URDF) may stay
+            return SetParametersResult(successful=False, reason=f'{", ".join(infinite)}: not a finite number '
+                                       '(infinite where it was finite)')
+        proposed = current | {p.name: p.value for p in parameters}
         try:
             values = self.parameters_of(nest(proposed))
         except (ValidationError, UnknownKind) as err:
@@ -234,3 +244,14 @@ class FunctionalEntity(Entity):
         for output in self.outputs.values():
             output.destroy()
         super().destroy_node()
+
+
+def _newly_infinite(old: Any, new: Any) -> bool:
+    """Whether ``new`` (a parameter's value) holds an infinity where ``old`` did not hold the same."""
+    if isinstance(new, float):
+        return math.isinf(new) and new != old
+    if isinstance(new, Sequence) and not isinstance(new, (str, bytes)):  # a ROS array: array.array, list
+        before = list(old) if isinstance(old, Sequence) and not isinstance(old, (str, bytes)) else []
+        return any(isinstance(v, float) and math.isinf(v) and (i >= len(before) or before[i] != v)
+                   for i, v in enumerate(new))
+    return False

@@ -19,12 +19,12 @@ from pydantic import Field
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
-from ..communication.event_names import NOTHING_RECEIVED, event
+from ..communication.event_names import NOTHING_RECEIVED, SAFETY_EVENT, event
 from ..communication.ports import InputPort, PortSpec
 from ..entity import CompositeContext
 from ..kinds import with_kind
 from .conditions import CONDITIONS
-from .functional_entity import FunctionalEntity
+from .functional_entity import OUTSIDE, FunctionalEntity
 from .parameters import ParameterModel
 
 __all__ = ['Monitor', 'read_field']
@@ -111,8 +111,11 @@ class Monitor(FunctionalEntity):
     def _check_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """Another threshold leaves the Monitor on or off as the FSM switched it; ``enabled`` set
         explicitly switches it."""
-        result = super()._check_parameters(parameters)
         switch = [bool(p.value) for p in parameters if p.name == 'enabled']
+        if switch and not switch[-1] and self.event == SAFETY_EVENT and self.cause == OUTSIDE:
+            return SetParametersResult(successful=False, reason=f'{self.entity_name} raises {SAFETY_EVENT}: a safety '
+                                       'function is not switched off from outside while it runs')
+        result = super()._check_parameters(parameters)
         if result.successful and switch:
             self._set_enabled(switch[-1])
         return result
