@@ -67,3 +67,37 @@ def test_an_idle_coordinator_sleeps_and_a_start_up_state_entered_after_its_sleep
         assert coordinator.state.startswith('Safety'), coordinator.state
     finally:
         destroy_all(executor)
+
+
+def test_a_composites_life_cycle_commands_count_from_its_parent_only():
+    """``e_<c>_stop`` published on a program composite's own event topic (``ros2 topic pub``) stopped
+    the program behind the root's back: the root went on reporting Running, and its own stop later
+    waited 20 s for a stop that had gone by (exit 1). A composite's life-cycle commands are its
+    parent's to give, on the parent's topic; on its own topic they are ignored."""
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    executor = make_executor()
+    try:
+        parent = CompositeContext(name='app', namespace='/app')
+        child = parent.child('program')
+        coordinator = Coordinator(composite=child)
+        operator = rclpy.create_node('operator', namespace='/app')
+        own, from_parent = (EventRaiser(operator, topic=topic) for topic in (child.events_topic, parent.events_topic))
+        executor.add_node(coordinator)
+        executor.add_node(operator)
+
+        def spin(seconds: float, until=lambda: False) -> None:
+            end = time.monotonic() + seconds
+            while time.monotonic() < end and not until():
+                executor.spin_once(timeout_sec=0.01)
+
+        spin(10.0, until=lambda: own.publisher.get_subscription_count() > 0
+             and from_parent.publisher.get_subscription_count() > 0)
+        own.raise_event(event('program', CONFIGURE))
+        spin(1.0)
+        assert coordinator.state == 'Init', coordinator.history
+        from_parent.raise_event(event('program', CONFIGURE))
+        spin(5.0, until=lambda: coordinator.state.endswith('DeployEntities'))
+        assert coordinator.state.endswith('DeployEntities'), coordinator.history
+    finally:
+        destroy_all(executor)
+        rclpy.try_shutdown()

@@ -22,8 +22,9 @@ from typing import Iterable
 
 from itasc_msgs.msg import CoordinatorState
 
-from ..communication.event_names import (CHILD_ADDED, CHILD_REMOVED, COMPOSE_FAILED, COMPOSED, NOTIFICATIONS, TIMEOUT,
-                                          event, from_parent, is_addressed_to, step_of)
+from ..communication.event_names import (CHILD_ADDED, CHILD_REMOVED, COMPOSE_FAILED, COMPOSED, CONFIGURE, EMERGENCY,
+                                          NOTIFICATIONS, RUN, START, STOP, TIMEOUT, event, from_parent,
+                                          is_addressed_to, step_of)
 from ..communication.qos import STATE_QOS
 from ..entity import CompositeContext, Entity
 from .lifecycle import LifecycleFsm, RunningFsmSpec
@@ -80,6 +81,10 @@ class Coordinator(Entity):
         #: The answers of this composite's Composer to a composition step (:mod:`..composition.steps`).
         self._step_answers = (event(c, COMPOSED), event(c, COMPOSE_FAILED))
         self._structure = {event(c, CHILD_ADDED): self.fsm.adopt, event(c, CHILD_REMOVED): self.fsm.release}
+        #: this composite's life-cycle commands: its parent's to give, on the parent's topic; on its
+        #: own topic only a raw publish brings them, which would stop it behind its parent's back
+        self._parents_commands = set() if self.is_root else {
+            event(c, command) for command in (CONFIGURE, START, RUN, STOP, EMERGENCY)}
         self._events = self.listen(topics=[composite.events_topic], on_priority=self._process,
                                      accept=self._accepts, on_gap=self._gap, on_held=self.wake)
         self._parent_events = None if self.is_root else self.listen(
@@ -93,6 +98,10 @@ class Coordinator(Entity):
         return self.fsm.state
 
     def _accepts(self, name: str) -> bool:
+        if name in self._parents_commands:
+            self.get_logger().warning(f'{name} on {self.composite.events_topic} ignored: the life-cycle commands '
+                                      f'of {self.composite.name} come from its parent')
+            return False
         return self.fsm.is_relevant(name) or name in self._structure or name in self._step_answers \
             or self.operator.accepts(name)
 
