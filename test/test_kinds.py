@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 from recordings import read_recording
@@ -50,3 +51,66 @@ def test_a_point_plane_inequality_keeps_the_hand_above_the_table_and_inside_tell
     assert reach.error_norm > 0.09  # the table is in the way: the target stays 15 cm off
     assert _running_states(recording, '/above_the_table/itasc')[-1] == 'rest'
     assert any(m.name == 'e_on_table' and 'inside' in m.detail for m in recording['/above_the_table/itasc/events'])
+
+
+def _broken_plugin(site: Path) -> dict[str, str]:
+    """An installed distribution (a dist-info on the path) of four controllers that cannot be used,
+    and the environment that has it on the path."""
+    import os
+    package = site / 'broken_kinds'
+    package.mkdir(parents=True)
+    (package / '__init__.py').write_text('')
+    (package / 'syntax.py').write_text('class Controller(\n')
+    (package / 'needs.py').write_text('import a_module_nobody_installed\n')
+    (package / 'wrong.py').write_text(textwrap.dedent('''\
+        from pydantic import Field
+        from itasc_tasks.controllers.kind import ConstraintController
+        from itasc_core.computation.parameters import ParameterModel
+        class NotOne:
+            pass
+        class NegativeGain(ConstraintController):
+            class Parameters(ParameterModel):
+                kp: float = Field(default=-5.0, ge=0)
+        '''))
+    info = site / 'broken_kinds-0.1.dist-info'
+    info.mkdir()
+    (info / 'METADATA').write_text('Metadata-Version: 2.1\nName: broken_kinds\nVersion: 0.1\n')
+    (info / 'entry_points.txt').write_text(textwrap.dedent('''\
+        [itasc.controllers]
+        broken_syntax = broken_kinds.syntax:Controller
+        broken_import = broken_kinds.needs:Controller
+        broken_class = broken_kinds.wrong:NotOne
+        broken_default = broken_kinds.wrong:NegativeGain
+        '''))
+    return dict(os.environ, PYTHONPATH=f'{site}{os.pathsep}{os.environ.get("PYTHONPATH", "")}')
+
+
+def test_a_broken_plugin_stops_only_the_models_that_name_it(tmp_path):
+    """An installed plugin whose kind cannot be used (its module does not import, the entry point
+    names no controller, a default its own rules refuse) stopped every application with a
+    traceback, exit 1, even those that never name it. Now each is said once, the others run, and a
+    model naming one is refused before anything starts, with why."""
+    env = _broken_plugin(tmp_path / 'site')
+    said = {'broken_syntax': "(broken_kinds.syntax:Controller) does not import: SyntaxError",
+            'broken_import': "(broken_kinds.needs:Controller) does not import: ModuleNotFoundError",
+            'broken_class': '(broken_kinds.wrong:NotOne) is not a ConstraintController',
+            'broken_default': '(broken_kinds.wrong:NegativeGain) has defaults its own rules refuse: kp: Input should '
+                              'be greater than or equal to 0'}
+    result = subprocess.run([*BOOTSTRAP, 'approach_object', '--duration', '0.5'], capture_output=True, text=True,
+                            timeout=120, env=env)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    warnings = [line for line in result.stderr.splitlines() if line.startswith('warning: constraint controller')]
+    assert len(warnings) == 4 and 'Traceback' not in result.stderr, result.stderr
+    for name, why in said.items():
+        assert any(f"'{name}' {why}" in line for line in warnings), (name, warnings)
+
+    model = tmp_path / 'uses_it.yaml'
+    model.write_text((MODELS / 'above_the_table.yaml').read_text().replace(
+        'controller: {kind: p, kp: 1.5, max_output: 0.2}', 'controller: {kind: broken_default}').replace(
+        '../../../config/', f'{MODELS.parents[2]}/config/'))
+    result = subprocess.run([*BOOTSTRAP, str(model), '--duration', '0.5'], capture_output=True, text=True,
+                            timeout=120, env=env)
+    assert result.returncode == 2, result.stdout[-3000:] + result.stderr[-3000:]
+    error = result.stderr.strip().splitlines()[-1]
+    assert error.startswith(f'error: {model}:') and said['broken_default'] in error, result.stderr
+    assert 'Traceback' not in result.stderr

@@ -16,13 +16,14 @@ model uses the kind.
 from __future__ import annotations
 
 import functools
+import sys
 from collections.abc import Mapping
 from importlib.metadata import EntryPoint, EntryPoints, entry_points
 from typing import Annotated, Any, Generic, Literal, TypeVar, Union, cast
 
-from pydantic import BaseModel, Discriminator, Field, Tag, create_model
+from pydantic import BaseModel, Discriminator, Field, Tag, ValidationError, create_model, model_validator
 
-__all__ = ['Registry', 'UnknownKind', 'variants', 'with_kind', 'derived_model', 'TAG', 'PROJECT']
+__all__ = ['Registry', 'UnknownKind', 'UnloadableKind', 'variants', 'with_kind', 'derived_model', 'TAG', 'PROJECT']
 
 K = TypeVar('K')
 M = TypeVar('M', bound=BaseModel)
@@ -35,6 +36,11 @@ TAG = '{field}={name}'
 
 class UnknownKind(ValueError, LookupError):
     pass
+
+
+class UnloadableKind(UnknownKind):
+    """A registered kind that cannot be used: its module does not import, its entry point names
+    nothing of the right base class, or its parameter model's defaults break its own rules."""
 
 
 @functools.cache
@@ -51,6 +57,9 @@ class Registry(Generic[K]):
         self.group, self.what, self.base = group, what, base
         self._points: dict[str, EntryPoint] | None = None
         self._loaded: dict[str, type[K]] = {}
+        #: the kinds that cannot be used, with why (:class:`UnloadableKind`)
+        self.broken: dict[str, str] = {}
+        self._told: set[str] = set()
 
     def _entry_points(self) -> dict[str, EntryPoint]:
         if self._points is None:
@@ -61,18 +70,37 @@ class Registry(Generic[K]):
         return self._points
 
     def _load(self, name: str) -> type[K]:
-        """Kind ``name`` (only its module imported: a process that runs one kind loads only that one)."""
+        """Kind ``name`` (only its module imported: a process that runs one kind loads only that one);
+        :class:`UnloadableKind` for one that cannot be used."""
+        if name in self.broken:
+            raise UnloadableKind(self.broken[name])
         if name not in self._loaded:
             point = self._entry_points()[name]
-            kind = point.load()
-            if not (isinstance(kind, type) and issubclass(kind, self.base)):
-                raise TypeError(f"{self.what} '{point.name}' ({point.value}) is not a {self.base.__name__}")
+            try:
+                kind = point.load()
+                fits = isinstance(kind, type) and issubclass(kind, self.base)
+                why = _default_problems(getattr(kind, 'Parameters', None)) if fits else f'is not a {self.base.__name__}'
+            except Exception as err:  # noqa: BLE001 - whatever a plugin's module raises as it is imported
+                why = f'does not import: {type(err).__name__}: {err}'
+            if why is not None:
+                self.broken[name] = f"{self.what} '{name}' ({point.value}) {why}"
+                raise UnloadableKind(self.broken[name])
             self._loaded[name] = cast(type[K], kind)
         return self._loaded[name]
 
     def kinds(self) -> dict[str, type[K]]:
-        """Every registered kind by name (each loaded once per process, sorted by name)."""
-        return {name: self._load(name) for name in self._entry_points()}
+        """Every usable registered kind by name (each loaded once per process, sorted by name); one
+        that cannot be used is said once on stderr and left out (a model naming it is refused,
+        naming why), so that a broken plugin does not stop the applications that do not use it."""
+        kinds: dict[str, type[K]] = {}
+        for name in self._entry_points():
+            try:
+                kinds[name] = self._load(name)
+            except UnloadableKind as err:
+                if name not in self._told:
+                    self._told.add(name)
+                    print(f'warning: {err}; a model that names it is refused', file=sys.stderr)
+        return kinds
 
     def names(self) -> list[str]:
         return list(self._entry_points())
@@ -106,6 +134,8 @@ def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suff
                                                               description=info.description))}
         model = derived_model(f'{kind.__name__}{suffix}', base=(kind.Parameters, base), doc=doc, **fields)
         members.append(Annotated[model, Tag(TAG.format(field=field, name=name))])
+    for name, why in registry.broken.items():  # named in a model: refused with why
+        members.append(Annotated[_refused(why, field=field, name=name), Tag(TAG.format(field=field, name=name))])
 
     def tag(value: Any) -> str | None:
         name = value.get(field, default) if isinstance(value, dict) else getattr(value, field, None)
@@ -113,6 +143,32 @@ def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suff
     return Annotated[Union[tuple(members)], Discriminator(
         tag, custom_error_type='unknown_kind', custom_error_message=f'unknown {registry.what}',
         custom_error_context=_Context(field=field, what=registry.what, known=', '.join(map(repr, registry.names()))))]
+
+
+def _default_problems(parameters: Any) -> str | None:
+    """What is wrong with the defaults of a kind's parameter model (a default its own rules refuse,
+    which a model that leaves the field out would otherwise run with), None if nothing is."""
+    if not (isinstance(parameters, type) and issubclass(parameters, BaseModel)):
+        return None
+    try:
+        parameters.model_validate({name: info.get_default(call_default_factory=True)
+                                   for name, info in parameters.model_fields.items() if not info.is_required()})
+    except ValidationError as err:
+        # a field's own rule; not a rule over several fields (e.g. one of two to give), which needs values
+        wrong = [e for e in err.errors() if e['type'] != 'missing' and e['loc']]
+        if wrong:
+            return 'has defaults its own rules refuse: ' + '; '.join(
+                f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in wrong)
+    return None
+
+
+def _refused(why: str, *, field: str, name: str) -> type[BaseModel]:
+    """A union member for kind ``name`` that cannot be used: validating it says ``why``."""
+    def refuse(cls: type[BaseModel], value: Any) -> Any:
+        raise ValueError(why)
+    validators: dict[str, Any] = {'refuse': model_validator(mode='before')(refuse)}
+    fields: dict[str, Any] = {field: (Literal[name], ...)}
+    return create_model(f'Unloadable_{name}', __validators__=validators, **fields)
 
 
 def derived_model(name: str, *, base: type[BaseModel] | tuple[type[BaseModel], ...], doc: str | None = None,
