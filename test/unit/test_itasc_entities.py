@@ -6,6 +6,7 @@ updated as a Scheduler would, events observed on their composite's event topic. 
 from __future__ import annotations
 
 import math
+import re
 import time
 from pathlib import Path
 
@@ -686,3 +687,20 @@ def test_a_parameter_change_is_announced_as_the_configurators_on_parameter_event
     assert world.spin_until(lambda: heard == [5.0, 8.0]), heard
     assert cc.controller.kp == 8.0
     handler.remove_parameter_callback(handle)
+
+
+@pytest.mark.parametrize('answer', ['maybe', None, 1.0, [True]])
+def test_a_condition_that_answers_neither_true_nor_false_is_an_error_not_a_yes(world, answer):
+    """A condition plugin whose holds() returned 'maybe' made its Monitor raise its event, as if the
+    condition held; such an answer is the plugin's error (the Scheduler takes it to Safety, named)."""
+    from itasc_core.computation.monitor import Monitor
+    from itasc_drivers.ports import driver_ports
+
+    spec = next(p for p in driver_ports('panda') if p.name == 'joint_state')
+    monitor = world.add(Monitor('far', composite=world.ctx, watch=spec, parameters={
+        'field': 'position[0]', 'condition': 'above', 'threshold': 1.0, 'event': 'e_far'}))
+    monitor.condition.holds = lambda values, **_: answer
+    monitor.inputs['watch'].deliver(as_sample(JointState(name=PANDA, position=PANDA_READY)), 'driver')
+    with pytest.raises(TypeError, match=f"condition 'above' of far answered {re.escape(repr(answer))}, not True"):
+        monitor.update(0.0)
+    assert monitor.raised == 0

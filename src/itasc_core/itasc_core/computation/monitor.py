@@ -158,6 +158,9 @@ class Monitor(FunctionalEntity):
         needs_values = self.condition.reads_values and port.latest is not None
         values = read_field(port.latest, self.field) if needs_values else None
         holds = self.condition.holds(values, age=now - self._since, seen=port.received > 0)
+        if not isinstance(holds, (bool, np.bool_)):  # 'maybe' or None is no answer: a plugin's error
+            raise TypeError(f"condition '{self.condition_name}' of {self.entity_name} answered {holds!r}, "
+                            'not True or False')
         if holds and not self._holding:
             self.raised += 1
             self.raise_event(self.event, detail=f'{self.entity_name}: {self.condition_name} on {self.field or "value"}')
