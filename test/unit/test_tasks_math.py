@@ -303,3 +303,17 @@ def test_pose_setpoints_in_output_space_and_their_start(scene, coordinates):
     assert start.isApprox(scene.relative_pose('obstacle', 'panda/ee'), 1e-12)
     assert start_value(MinimumJerkSetpoint(vector, duration=1.0), features=features, output=vector,
                        rotation=vkc.rotation) is vector
+
+
+@pytest.mark.parametrize('answer, got', [(np.zeros(8), '8 values'), (0.0, '0.0'), (None, 'None')])
+def test_a_control_law_that_returns_the_wrong_shape_is_named_not_the_solver(answer, got):
+    """A controller plugin returning 8 values for 6 outputs (or a scalar, or None) reached the Solver,
+    whose Safety then read 'shapes (8,) and (6,7) not aligned' or "'float' object has no attribute
+    'tolist'": nothing named the law."""
+    class Wrong(PController):
+        def __call__(self, error, feedforward, dt):
+            return answer
+
+    with pytest.raises(TypeError, match=f'constraint controller Wrong returned {got} for 6 outputs: expected an '
+                                        'array of 6 values'):
+        equality_control(Wrong(kp=1.0), np.zeros(6), np.ones(6), 0.0, 0.01)

@@ -51,6 +51,10 @@ def equality_control(controller: ConstraintController, y: np.ndarray, setpoint: 
     """Track ``setpoint`` (with its feed-forward velocity): ``ydot = controller(e, ff, dt)``."""
     error = control_error(y, setpoint, rotation=rotation)
     desired = controller(error, feedforward, dt)
+    if not (isinstance(desired, np.ndarray) and desired.shape == error.shape):  # a plugin's law got it wrong
+        got = f'{desired.size} values' if isinstance(desired, np.ndarray) else repr(desired)[:60]
+        raise TypeError(f'constraint controller {type(controller).__name__} returned {got} for {error.size} '
+                        f'outputs: expected an array of {error.size} values')
     return desired, desired, desired, setpoint, error
 
 
