@@ -97,6 +97,25 @@ def test_a_recording_whose_writer_was_killed_too_is_made_readable_by_itasc_recov
     assert lost < 1.5, f'the last {lost:.2f} s before the kill are lost'
 
 
+def test_a_cut_off_bag_folder_is_named_as_such_by_the_replay_and_recovered_by_its_folder(tmp_path):
+    """Before, itasc-replay said only 'not a readable bag (RecordLengthLimitExceeded ...)' and
+    itasc-recover said 'no such file' for the folder; the replay now names the way out, and
+    itasc-recover takes the folder (its one MCAP file)."""
+    bag = tmp_path / 'run'
+    _killed_run(bag, writer_too=True)
+    mcap = bag / 'run_0.mcap'
+    with Spawned([sys.executable, '-m', 'itasc_bringup.replay', str(bag)]) as replay:
+        assert replay.finish(timeout=120) == 2, replay.output()
+    assert f'{bag}: not a readable bag (' in replay.err, replay.output()
+    assert f'itasc-recover {mcap} writes a readable copy of what it holds' in replay.err, replay.output()
+    with Spawned([*RECOVER, str(bag)]) as recover:
+        assert recover.finish(timeout=60) == 0, recover.output()
+    recovered = bag / 'run_0.recovered.mcap'
+    assert recover.out.startswith(f'{recovered}: '), recover.output()
+    with AnyReader([recovered]) as reader:
+        assert sum(1 for _ in reader.messages()) > 1000
+
+
 def test_a_second_instance_in_the_same_domain_stops_before_anything_starts():
     """The same application started again in the same ROS domain (a second terminal) exits 2 at once,
     naming the running one's process, and the running one goes on untouched to its orderly end

@@ -7,7 +7,7 @@ second, so everything up to the last finished chunk is intact on disk: this comm
 file as a stream until it ends or breaks off, and writes the schemas, channels, messages and
 metadata it found into a complete MCAP file. At most the last second of the run is lost.
 
-    itasc-recover BROKEN.mcap [-o RECOVERED.mcap]
+    itasc-recover BROKEN.mcap|BAG_FOLDER [-o RECOVERED.mcap]
 """
 
 from __future__ import annotations
@@ -54,15 +54,23 @@ def recover(source: Path, target: Path) -> tuple[int, bool]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='itasc-recover', description=__doc__.split('\n\n')[0])
-    parser.add_argument('mcap', type=Path, help='the MCAP file of a recording that was cut off')
+    parser.add_argument('mcap', type=Path, help='the MCAP file (or bag folder) of a recording that was cut off')
     parser.add_argument('-o', '--output', type=Path, default=None,
                         help='where to write the recovered file (default: <name>.recovered.mcap)')
     args = parser.parse_args(argv)
-    if not args.mcap.is_file():
-        print(f'error: {args.mcap}: no such file', file=sys.stderr)
+    source = args.mcap
+    if source.is_dir():  # a bag folder: its MCAP file
+        found = sorted(f for f in source.glob('*.mcap') if not f.name.endswith('.recovered.mcap'))
+        if len(found) != 1:
+            print(f'error: {source}: a bag folder with {len(found)} MCAP files; give the one to recover',
+                  file=sys.stderr)
+            return 2
+        source = found[0]
+    if not source.is_file():
+        print(f'error: {source}: no such file', file=sys.stderr)
         return 2
-    output = args.output or args.mcap.with_suffix('.recovered.mcap')
-    messages, cut_off = recover(args.mcap, output)
+    output = args.output or source.with_suffix('.recovered.mcap')
+    messages, cut_off = recover(source, output)
     print(f'{output}: {messages} messages recovered' + (' (the original was cut off)' if cut_off else ''))
     return 0
 

@@ -147,7 +147,7 @@ def topic_names(bag: Path) -> list[str]:
                 names += [c.topic for c in summary.channels.values()] if summary else []
         return names
     except Exception as err:  # noqa: BLE001 - mcap raises several kinds for a file that is not an MCAP
-        raise ReplayError(f'{bag}: not a readable bag ({type(err).__name__}: {err})') from None
+        raise ReplayError(_unreadable(bag, err)) from None
 
 
 def _messages(bag: Path, wanted: Callable[[str], bool]):
@@ -172,7 +172,14 @@ def _messages(bag: Path, wanted: Callable[[str], bool]):
     except ReplayError:
         raise
     except Exception as err:  # noqa: BLE001 - mcap and the deserializer raise several kinds for a broken file
-        raise ReplayError(f'{bag}: not a readable bag ({type(err).__name__}: {err})') from None
+        raise ReplayError(_unreadable(bag, err)) from None
+
+
+def _unreadable(bag: Path, err: Exception) -> str:
+    """Why ``bag`` cannot be read, and what may make it readable (a recording cut off by a kill)."""
+    files = ' '.join(str(f) for f in _files(bag))
+    return (f'{bag}: not a readable bag ({type(err).__name__}: {err}); if its recording was cut off, '
+            f'itasc-recover {files} writes a readable copy of what it holds')
 
 
 def read_recording(bag: Path, *, commands: list[str], outputs: set[str], inputs: set[str], events_under: str,
