@@ -313,3 +313,20 @@ def test_a_task_composite_removed_and_added_back_runs_again_in_a_process_of_its_
         stop = trigger(f'{ROOT}/coordinator/stop')
         assert stop.success, stop
         assert app.finish(timeout=60) == 0, app.output()
+
+
+def test_a_step_its_state_runs_that_fails_is_said_while_it_runs():
+    """An operator ran ``retreat`` ahead of the program; entering its own ``retreat`` state, the
+    program ran the step again, which fails (AvoidObstacle is gone), and it waits for an
+    ``e_itasc_composed`` that cannot come. Before, nothing but an ERROR log line said so while it
+    ran; now the console says the failed step as it happens, with why."""
+    with Spawned([*BOOTSTRAP, 'pick_and_retreat', '--duration', '30']) as app:
+        app.wait_for_line('[state] itasc: Active.Run.Running.wait_for_gripper', timeout=120)
+        ahead = compose(PROGRAM, 'retreat')
+        assert ahead.success, ahead
+        assert trigger(f'{PROGRAM}/object_grasped').success
+        line = app.wait_for_line(f'warning: e_itasc_compose_failed from {PROGRAM}/composer: retreat: ', timeout=30)
+        assert 'AvoidObstacle' in line, line
+        stop = trigger(f'{ROOT}/coordinator/stop')
+        assert stop.success, stop
+        assert app.finish(timeout=60) == 0, app.output()

@@ -275,6 +275,8 @@ def main(argv: list[str] | None = None) -> int:
                 console.show(f'warning: --record: {recording_lost}: nothing more is recorded')
             watch.poll(composer.timer)
             console.show_safety()
+            for fault in outcome.lasting_faults() if stop_sent_at is None else ():  # the summary says the later ones
+                console.show(f'warning: {fault}')
             for line in waits.due():
                 console.show(line)
             console.refresh()

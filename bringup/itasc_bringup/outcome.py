@@ -83,6 +83,7 @@ class RunOutcome:
         self._safety_told = False
         self._episode_from = 0  # the faults of the current Safety start here
         self._first_now: str | None = None  # the first composite in the current Safety
+        self._said = 0  # the faults lasting_faults looked at
         self._listener = EventListener(
             node, topics=[events_topic(ns) for ns in composites.values()], immediate=True,
             on_priority=self._on_event)
@@ -146,6 +147,19 @@ class RunOutcome:
     def rate_text(self, rate: float) -> str:
         """The achieved rate as a console shows it: nothing runs in Safety."""
         return '- (Safety: nothing runs)' if self.unrecovered else f'{rate:.1f} Hz'
+
+    def lasting_faults(self, *, settled: float = 0.5) -> list[str]:
+        """The faults not said yet that did not put the run in Safety within ``settled`` s (a
+        composition step that failed, a refused connection): to say while the run goes on, since
+        no SAFETY line will."""
+        now, said = time.monotonic(), []
+        while self._said < len(self.faults) and now - self.faults[self._said].at >= settled:
+            fault = self.faults[self._said]
+            self._said += 1
+            if fault.name != SAFETY_EVENT and not self.unrecovered \
+                    and all(entered < fault.at for entered in self.in_safety.values()):
+                said.append(str(fault))
+        return said
 
     def warnings(self) -> Iterable[str]:
         """Faults that did not end in Safety (e.g. a refused connection that was retried)."""
