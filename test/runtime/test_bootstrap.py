@@ -305,3 +305,16 @@ def test_a_stuck_bootstrap_tells_where_it_is_stuck_and_runs_on():
         assert re.search(r'File ".*bootstrap\.py", line \d+ in main', waited.value.args[0]), waited.value.args[0]
         app.send_signal(signal.SIGINT)
         assert app.finish(timeout=60) == 0, app.output()
+
+
+def test_a_composite_process_leaves_no_model_file_behind_however_its_parent_ends():
+    """The model of a composite process was left in the temporary folder by every parent killed
+    with SIGKILL (a bootstrap, a host agent): the process now removes it once it has read it."""
+    import pathlib
+    with Spawned([*BOOTSTRAP, 'pattern_demo', '--deploy', 'per-composite']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        specs = [re.search(r'--spec (\S+)', line).group(1) for line in started_here(command='--spec ').values()]
+        assert len(specs) == 3, specs  # program, track, hold
+        assert not [spec for spec in specs if pathlib.Path(spec).exists()], specs
+        app.process.kill()
+        app.process.wait()

@@ -14,6 +14,7 @@ take part in. Its parent ends it with SIGKILL when it cannot stop in order.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import faulthandler
 import json
 import os
@@ -58,6 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     with open(args.spec) as spec:
         model = CompositeModel.model_validate(json.load(spec))
+    with contextlib.suppress(OSError):  # read once: nothing is left in the temporary folder if a parent is killed
+        os.unlink(args.spec)
     context = CompositeContext(name=model.name, namespace=args.namespace, parent_namespace=args.parent_namespace)
 
     configure_dds()
