@@ -160,6 +160,19 @@ def test_the_agent_refuses_bad_settings_with_exit_2(env, args, message):
     assert message in agent.err and 'Traceback' not in agent.err, agent.err
 
 
+def test_a_second_agent_of_the_same_name_is_refused_with_exit_2():
+    """Two agents named alike both started every composite placed on their host (two copies of one
+    composite in one namespace, its events crossing); the second now refuses to start."""
+    agent = [sys.executable, '-m', 'itasc_core.composition.host_agent', '--name', 'second']
+    with Spawned(agent) as first:
+        first.wait_for_line('host_agent second: ready', timeout=30)
+        with Spawned(agent) as second:
+            assert second.finish(timeout=30) == 2, second.output()
+        assert 'error: a host agent named second already runs in ROS domain' in second.err, second.output()
+        assert 'ready' not in second.out and 'Traceback' not in second.err, second.output()
+        assert first.process.poll() is None  # the first one goes on
+
+
 def test_a_host_without_an_agent_fails_the_start_naming_the_host():
     with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'pattern_two_hosts', '--duration', '3']) as app:
         assert app.finish(timeout=60) == 2, app.output()

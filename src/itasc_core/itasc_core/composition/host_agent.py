@@ -44,7 +44,10 @@ from itasc_msgs.msg import Event
 
 from .hosts import AGENT_QOS, HOLD_TIMEOUT, HOST_NAME, PERIOD, requests_topic, status_topic
 
-__all__ = ['HostAgent', 'main']
+__all__ = ['HostAgent', 'main', 'DUPLICATE_WAIT']
+
+#: How long a starting agent looks for another agent of its name before it answers [s].
+DUPLICATE_WAIT = 1.5
 
 
 @dataclass
@@ -170,9 +173,18 @@ def main(argv: list[str] | None = None) -> int:
     executor = make_executor()
     agent = HostAgent(host=args.name)
     executor.add_node(agent)
-    print(f'host_agent {args.name}: ready (ROS_DOMAIN_ID {os.environ.get("ROS_DOMAIN_ID", "0")}, '
-          f'pid {os.getpid()})', flush=True)
+    domain = os.environ.get('ROS_DOMAIN_ID', '0')
     try:
+        # two agents of one name would both start every composite placed on that host: look for
+        # another before answering (a discovery round: participants announce themselves every 0.5 s)
+        until = time.monotonic() + DUPLICATE_WAIT
+        while not stop and time.monotonic() < until and agent.count_publishers(status_topic(args.name)) < 2:
+            executor.spin_once(timeout_sec=0.05)
+        if agent.count_publishers(status_topic(args.name)) > 1:
+            print(f'error: a host agent named {args.name} already runs in ROS domain {domain}; give this one '
+                  'another --name', file=sys.stderr)
+            return 2
+        print(f'host_agent {args.name}: ready (ROS_DOMAIN_ID {domain}, pid {os.getpid()})', flush=True)
         while not stop:
             executor.spin_once(timeout_sec=0.05)
     finally:
