@@ -173,6 +173,15 @@ def test_a_second_agent_of_the_same_name_is_refused_with_exit_2():
         assert first.process.poll() is None  # the first one goes on
 
 
+def test_the_bootstrap_refuses_a_host_name_the_agent_would_refuse():
+    """ITASC_HOST=bad-name was taken silently by the bootstrap (no composite could ever be placed
+    there), where the agent refuses the same name."""
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--duration', '1'],
+                 env={**os.environ, 'ITASC_HOST': 'bad-name'}) as app:
+        assert app.finish(timeout=30) == 2, app.output()
+    assert "ITASC_HOST must be a host name like arm_pc (letters, digits, _), got 'bad-name'" in app.err, app.output()
+
+
 def test_a_host_without_an_agent_fails_the_start_naming_the_host():
     with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'pattern_two_hosts', '--duration', '3']) as app:
         assert app.finish(timeout=60) == 2, app.output()

@@ -30,6 +30,7 @@ import io
 import math
 import os
 import pathlib
+import re
 import signal
 import sys
 import time
@@ -72,7 +73,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                '  2 wrong model or DDS setting, or the application already running in this ROS domain\n'
                '  here (nothing was started), or a failure before Running (what was started is\n'
                '  stopped in order); 3 the run ended in Safety; 4 it went through Safety, was\n'
-               '  recovered (~/recover) and stopped in order from Running\n\n'
+               '  recovered (~/recover) and stopped in order from Running; 5 it stopped in order\n'
+               '  from Running but its --record recording is incomplete\n\n'
                'shell completion: eval "$(register-python-argcomplete bootstrap)"')
     app = parser.add_argument('app', help='application name (config/apps/<name>.yaml) or path to a model file')
     app.completer = _app_completer(apps)  # type: ignore[attr-defined]  # argcomplete reads it
@@ -101,6 +103,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error(f'--rate must be between {MIN_RATE:g} and {MAX_RATE:g} Hz (got {args.rate})')
     if args.summary_json is not None and not args.summary_json.parent.is_dir():
         parser.error(f'--summary-json: no directory {args.summary_json.parent}')
+    from itasc_core.composition.hosts import HOST_NAME
+    if (host := os.environ.get('ITASC_HOST')) and not re.match(HOST_NAME, host):  # as the host agent checks it
+        parser.error(f'ITASC_HOST must be a host name like arm_pc (letters, digits, _), got {host!r}')
     return args
 
 
