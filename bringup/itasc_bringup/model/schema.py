@@ -28,6 +28,7 @@ from itasc_core.composition.model import (MAX_RATE, MIN_RATE, OutsideEventModel,
                                          RunningTransitionModel)
 from itasc_core.computation.conditions import CONDITIONS
 from itasc_core.computation.parameters import Names, TopicName, no_bool_for_number, partial
+from itasc_core.documented import Documented
 from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
@@ -51,8 +52,8 @@ NAME = r'^[A-Za-z][A-Za-z0-9_]{0,63}$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
 
 
-class _Model(BaseModel):
-    model_config = ConfigDict(extra='forbid', populate_by_name=True, use_attribute_docstrings=True)
+class _Model(BaseModel, metaclass=Documented):
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
     @field_validator('*', mode='before')
     @classmethod

@@ -22,6 +22,7 @@ from pydantic import (BaseModel, ConfigDict, Discriminator, Field, Tag, Validati
 
 from ..computation.conditions import CONDITIONS
 from ..computation.parameters import TopicName, no_bool_for_number, problems
+from ..documented import Documented
 from ..kinds import UnknownKind
 
 __all__ = [
@@ -52,8 +53,8 @@ COMPOSITE_NODES = ('coordinator', 'composer', 'configurator', 'scheduler', 'time
 MIN_RATE, MAX_RATE = 0.01, 100_000.0
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra='forbid', frozen=True, use_attribute_docstrings=True)
+class _Strict(BaseModel, metaclass=Documented):
+    model_config = ConfigDict(extra='forbid', frozen=True)
 
     @field_validator('*', mode='before')
     @classmethod

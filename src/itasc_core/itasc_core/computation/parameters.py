@@ -28,6 +28,7 @@ from pydantic.fields import FieldInfo
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
+from ..documented import Documented
 from ..kinds import derived_model
 
 __all__ = ['ParameterModel', 'NoParameters', 'Names', 'TopicName', 'declarations', 'flatten', 'nest', 'ros_type',
@@ -36,12 +37,12 @@ __all__ = ['ParameterModel', 'NoParameters', 'Names', 'TopicName', 'declarations
 _INT64 = 2 ** 63 - 1
 
 
-class ParameterModel(BaseModel):
+class ParameterModel(BaseModel, metaclass=Documented):
     """Base of every entity's parameter model: unknown fields refused, no NaN anywhere (rclpy's
     ranges let a NaN through where a parameter has none: a threshold, a list), field docstrings
     kept as descriptions."""
 
-    model_config = ConfigDict(extra='forbid', use_attribute_docstrings=True)
+    model_config = ConfigDict(extra='forbid')
 
     @field_validator('*')
     @classmethod
