@@ -27,8 +27,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from itasc_core.composition.model import (MAX_RATE, MIN_RATE, OutsideEventModel, RunningStateModel,
                                          RunningTransitionModel)
 from itasc_core.computation.conditions import CONDITIONS
-from itasc_core.computation.parameters import Names, TopicName, no_bool_for_number, partial
-from itasc_core.documented import Documented
+from itasc_core.computation.parameters import FileModel, Names, TopicName, partial
 from itasc_core.kinds import Registry, variants
 from itasc_core.itasc.entities.scene_entity import ObjectMotion, Placement
 from itasc_core.itasc.entities.solver_entity import SolverSettings
@@ -39,7 +38,7 @@ from itasc_tasks.entities.constraint_controller_entity import ControllerBase
 from itasc_tasks.entities.setpoint_generator_entity import SetpointBase
 from itasc_tasks.setpoints import SETPOINTS
 from itasc_tasks.task_types import TASK_TYPES
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationInfo, field_validator, model_validator
+from pydantic import ConfigDict, Field, TypeAdapter, ValidationInfo, field_validator, model_validator
 
 __all__ = ['KIND_SECTIONS', 'Application', 'Program', 'Robot', 'RobotFrame', 'Object', 'ObjectFrame', 'Task',
            'Controller', 'Setpoint', 'Placement', 'ObjectMotion', 'Driver', 'Sensor', 'Solver', 'Monitor',
@@ -52,13 +51,8 @@ NAME = r'^[A-Za-z][A-Za-z0-9_]{0,63}$'
 EVENT = r'^e_[A-Za-z0-9_]+$'
 
 
-class _Model(BaseModel, metaclass=Documented):
-    model_config = ConfigDict(extra='forbid', populate_by_name=True)
-
-    @field_validator('*', mode='before')
-    @classmethod
-    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
-        return no_bool_for_number(cls, value, info)
+class _Model(FileModel):
+    model_config = ConfigDict(populate_by_name=True)
 
 
 def _as_list(value: Any) -> Any:

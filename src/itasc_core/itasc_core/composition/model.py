@@ -17,12 +17,10 @@ import re
 from collections.abc import Iterable, Mapping
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import (BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, ValidationInfo,
-                      field_validator, model_validator)
+from pydantic import (ConfigDict, Discriminator, Field, Tag, ValidationError, field_validator, model_validator)
 
 from ..computation.conditions import CONDITIONS
-from ..computation.parameters import TopicName, no_bool_for_number, problems
-from ..documented import Documented
+from ..computation.parameters import FileModel, TopicName, problems
 from ..kinds import UnknownKind
 
 __all__ = [
@@ -53,13 +51,8 @@ COMPOSITE_NODES = ('coordinator', 'composer', 'configurator', 'scheduler', 'time
 MIN_RATE, MAX_RATE = 0.01, 100_000.0
 
 
-class _Strict(BaseModel, metaclass=Documented):
-    model_config = ConfigDict(extra='forbid', frozen=True)
-
-    @field_validator('*', mode='before')
-    @classmethod
-    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
-        return no_bool_for_number(cls, value, info)
+class _Strict(FileModel):
+    model_config = ConfigDict(frozen=True)
 
 
 class EntityModel(_Strict):

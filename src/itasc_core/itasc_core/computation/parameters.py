@@ -31,18 +31,28 @@ from rclpy.parameter import Parameter
 from ..documented import Documented
 from ..kinds import derived_model
 
-__all__ = ['ParameterModel', 'NoParameters', 'Names', 'TopicName', 'declarations', 'flatten', 'nest', 'ros_type',
-           'problems', 'partial', 'no_bool_for_number']
+__all__ = ['FileModel', 'ParameterModel', 'NoParameters', 'Names', 'TopicName', 'declarations', 'flatten', 'nest',
+           'ros_type', 'problems', 'partial', 'no_bool_for_number']
 
 _INT64 = 2 ** 63 - 1
 
 
-class ParameterModel(BaseModel, metaclass=Documented):
-    """Base of every entity's parameter model: unknown fields refused, no NaN anywhere (rclpy's
-    ranges let a NaN through where a parameter has none: a threshold, a list), field docstrings
-    kept as descriptions."""
+class FileModel(BaseModel, metaclass=Documented):
+    """Base of every model read from a file (the application and composition models, the
+    entities' parameters): unknown fields refused, ``true``/``false`` no number
+    (:func:`no_bool_for_number`), field docstrings kept as descriptions."""
 
     model_config = ConfigDict(extra='forbid')
+
+    @field_validator('*', mode='before')
+    @classmethod
+    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
+        return no_bool_for_number(cls, value, info)
+
+
+class ParameterModel(FileModel):
+    """Base of every entity's parameter model: a :class:`FileModel` with no NaN anywhere (rclpy's
+    ranges let a NaN through where a parameter has none: a threshold, a list)."""
 
     @field_validator('*')
     @classmethod
@@ -50,11 +60,6 @@ class ParameterModel(BaseModel, metaclass=Documented):
         if _has_nan(value):
             raise ValueError(f'NaN is not a value (got {value})')
         return value
-
-    @field_validator('*', mode='before')
-    @classmethod
-    def _no_bool(cls, value: Any, info: ValidationInfo) -> Any:
-        return no_bool_for_number(cls, value, info)
 
 
 def no_bool_for_number(cls: type[BaseModel], value: Any, info: ValidationInfo) -> Any:
