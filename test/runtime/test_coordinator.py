@@ -3,6 +3,7 @@ is something to update, and a start-up state still times out on time after it sl
 
 from __future__ import annotations
 
+import functools
 import time
 
 import rclpy
@@ -14,6 +15,13 @@ from itasc_core.composition.deployment import make_executor
 from itasc_core.coordination.coordinator import Coordinator
 from itasc_core.entity import CompositeContext
 from ros_teardown import destroy_all
+
+
+def _spin(executor, seconds: float, until=lambda: False) -> None:
+    """Spin ``executor`` for ``seconds``, or until ``until()``."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and not until():
+        executor.spin_once(timeout_sec=0.01)
 
 
 class CountingCoordinator(Coordinator):
@@ -44,11 +52,7 @@ def test_an_idle_coordinator_sleeps_and_a_start_up_state_entered_after_its_sleep
         executor.add_node(coordinator)
         executor.add_node(driver)
 
-        def spin(seconds: float, until=lambda: False) -> None:
-            end = time.monotonic() + seconds
-            while time.monotonic() < end and not until():
-                executor.spin_once(timeout_sec=0.01)
-
+        spin = functools.partial(_spin, executor)
         spin(10.0, until=lambda: raiser.publisher.get_subscription_count() > 0)
         spin(0.3)  # the updates of the start, if any
         before = coordinator.updates
@@ -85,11 +89,7 @@ def test_a_composites_life_cycle_commands_count_from_its_parent_only():
         executor.add_node(coordinator)
         executor.add_node(operator)
 
-        def spin(seconds: float, until=lambda: False) -> None:
-            end = time.monotonic() + seconds
-            while time.monotonic() < end and not until():
-                executor.spin_once(timeout_sec=0.01)
-
+        spin = functools.partial(_spin, executor)
         spin(10.0, until=lambda: own.publisher.get_subscription_count() > 0
              and from_parent.publisher.get_subscription_count() > 0)
         own.raise_event(event('program', CONFIGURE))
