@@ -192,12 +192,14 @@ class SolverEntity(FunctionalEntity):
                 remote[topic] = sample
             else:
                 samples.append(sample)
-        samples += self._one_tick(remote)
+        if remote or self._remote_ticks:  # in one process (--deploy single): neither
+            samples += self._one_tick(remote, oldest=remote_fresh)
         return [self._problem_rows(sample) for sample in samples if sample.rows]
 
-    def _one_tick(self, newest: dict[str, RowsSample]) -> list[RowsSample]:
+    def _one_tick(self, newest: dict[str, RowsSample], *, oldest: float) -> list[RowsSample]:
         """The rows of the newest tick that every Task of ``newest`` (topic -> its newest rows,
-        from other processes) has rows of; the newest of each if they have no tick in common."""
+        from other processes) has rows of, and not before ``oldest``; the newest of each if they
+        have no such tick in common."""
         for topic in [t for t in self._remote_ticks if t not in newest]:  # gone, switched off or stale
             del self._remote_ticks[topic]
         for topic, sample in newest.items():
@@ -207,7 +209,7 @@ class SolverEntity(FunctionalEntity):
                 del ticks[next(iter(ticks))]
         if len(newest) < 2:
             return list(newest.values())
-        common = set.intersection(*(set(self._remote_ticks[topic]) for topic in newest))
+        common = {t for t in set.intersection(*(set(self._remote_ticks[topic]) for topic in newest)) if t >= oldest}
         if not common:
             return list(newest.values())
         tick = max(common)
