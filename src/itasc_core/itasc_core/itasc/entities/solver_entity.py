@@ -6,7 +6,7 @@ counts if it is of the current tick; that of a Task in another process (``--depl
 crosses DDS and comes a tick or more after the tick that triggered it, so it counts while it is at
 most ``remote_rows_age`` old, unless this process switched its composite off. Rows from other
 processes arrive one by one: of those, the Solver takes the newest tick every such Task has
-rows of (it keeps each one's last :data:`REMOTE_TICKS_KEPT`), not the newest of each. Rows of
+rows of (it keeps each one's rows for ``remote_rows_age``), not the newest of each. Rows of
 two ticks describe two configurations, and one Task's row is then no longer quite in the row space
 of another's: a higher-priority inequality (an obstacle distance) that the configuration leaves no
 redundancy for was met by a joint velocity hundreds of times the task's (one tick at a joint's
@@ -52,11 +52,7 @@ from ..solver.problem import ConstraintRows
 from .messages import PROGRAM_VELOCITIES, ROWS_SEMANTICS, JointSample, RowsSample, SolverStatusSample
 from .scene_entity import PROGRAM_JOINTS
 
-__all__ = ['SolverEntity', 'SolverSettings', 'REMOTE_TICKS_KEPT']
-
-#: How many of its last ticks' rows the Solver keeps of each Task in another process, to find
-#: a tick all of them computed (a Task process a few ticks behind the others is not waited for).
-REMOTE_TICKS_KEPT = 4
+__all__ = ['SolverEntity', 'SolverSettings']
 
 
 class SolverSettings(ParameterModel):
@@ -205,7 +201,7 @@ class SolverEntity(FunctionalEntity):
         for topic, sample in newest.items():
             ticks = self._remote_ticks.setdefault(topic, {})
             ticks[sample.t] = sample
-            while len(ticks) > REMOTE_TICKS_KEPT:
+            while next(iter(ticks)) < oldest:  # as long as rows count (one process may lag the others)
                 del ticks[next(iter(ticks))]
         if len(newest) < 2:
             return list(newest.values())
