@@ -10,6 +10,7 @@ import copy
 import subprocess
 import sys
 from pathlib import Path
+from collections import Counter
 from typing import Any, Callable
 
 import pytest
@@ -22,6 +23,7 @@ from itasc_core.communication.ports import check_connection
 from itasc_core.composition.loader import ModelError
 from itasc_core.composition.model import CompositeModel, walk
 from itasc_core.composition.resolve import port_of
+from itasc_core.computation.functional_entity import FunctionalEntity
 
 SHIPPED = ('approach_object', 'approach_object_ros_driver', 'mobile_manipulator')
 
@@ -44,6 +46,27 @@ def _check_ports(model: CompositeModel) -> None:
 def test_shipped_application_loads_and_every_connection_agrees_on_port_metadata(app):
     assert check_model(app) is None
     _check_ports(load_composition(app))
+
+
+def test_the_ports_of_a_program_of_many_tasks_are_resolved_validating_each_entity_once(tmp_path, monkeypatch):
+    """The Scene and the Solver, which every Task connects to, have parameters that grow with the
+    Tasks: validated once per connection, loading and deploying a program took time growing with
+    the square of its Tasks (issue #9: bring-up against the number of Tasks)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
+    from scaling import application
+    model = tmp_path / 'many.yaml'
+    model.write_text(yaml.safe_dump(application(tasks=12)))
+    validated: Counter[int] = Counter()
+    validate = FunctionalEntity.parameters_of.__func__
+
+    def counted(cls, values):
+        validated[id(values)] += 1
+        return validate(cls, values)
+    monkeypatch.setattr(FunctionalEntity, 'parameters_of', classmethod(counted))
+    composition = load_composition(str(model))  # checks every connection
+    _check_ports(composition)  # as the Composers do
+    _check_ports(composition)  # as a re-composition's checks do
+    assert validated and max(validated.values()) <= 2, validated.most_common(3)  # the model's check, then its ports
 
 
 def test_approach_object_has_the_three_levels_of_composition():

@@ -7,6 +7,8 @@ check a connection without the entities being instantiated, in whatever process 
 
 from __future__ import annotations
 
+import weakref
+
 from ..communication.ports import PortSpec
 from ..computation.functional_entity import FunctionalEntity
 from .model import CompositeModel, EntityModel
@@ -36,12 +38,29 @@ def port_of(model: CompositeModel, namespace: str, ref: str) -> tuple[PortSpec, 
     return _leaf_port(entity, namespace, port_name)
 
 
-def _leaf_port(entity: EntityModel, namespace: str, port_name: str) -> tuple[PortSpec, str]:
+#: The ports of every entity model resolved so far, by the model object's id (models are not
+#: changed once made; an entry goes with its model). An entity that many connect to, a Scene or a
+#: Solver whose parameters grow with the Tasks, had its parameters validated once per connection:
+#: the bring-up of a program grew with the square of its Tasks.
+_specs: dict[int, tuple[weakref.ref, list[PortSpec]]] = {}
+
+
+def _port_specs(entity: EntityModel) -> list[PortSpec]:
+    known = _specs.get(id(entity))
+    if known is not None and known[0]() is entity:
+        return known[1]
     cls = resolve_kind(entity.kind)
-    params = cls.parameters_of(entity.parameters)
-    for spec in cls.port_specs(params):
+    specs = cls.port_specs(cls.parameters_of(entity.parameters))
+    key = id(entity)
+    _specs[key] = (weakref.ref(entity, lambda _: _specs.pop(key, None)), specs)
+    return specs
+
+
+def _leaf_port(entity: EntityModel, namespace: str, port_name: str) -> tuple[PortSpec, str]:
+    specs = _port_specs(entity)
+    for spec in specs:
         if spec.name == port_name:
             topic = FunctionalEntity.port_topic(namespace, entity.name, port_name)
             return spec.with_id(topic), f'{namespace}/{entity.name}.{port_name}'
-    names = [s.name for s in cls.port_specs(params)]
-    raise PortNotFound(f"entity '{entity.name}' ({entity.kind}) has no port '{port_name}' (ports: {names})")
+    raise PortNotFound(f"entity '{entity.name}' ({entity.kind}) has no port '{port_name}' "
+                       f'(ports: {[s.name for s in specs]})')
