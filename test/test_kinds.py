@@ -114,3 +114,13 @@ def test_a_broken_plugin_stops_only_the_models_that_name_it(tmp_path):
     error = result.stderr.strip().splitlines()[-1]
     assert error.startswith(f'error: {model}:') and said['broken_default'] in error, result.stderr
     assert 'Traceback' not in result.stderr
+
+    # a kind that does not exist: the kinds offered instead are those that can be used
+    model.write_text(model.read_text().replace('{kind: broken_default}', '{kind: proportional}'))
+    result = subprocess.run([*BOOTSTRAP, str(model), '--duration', '0.5'], capture_output=True, text=True,
+                            timeout=120, env=env)
+    assert result.returncode == 2, result.stdout[-3000:] + result.stderr[-3000:]
+    error = result.stderr.strip().splitlines()[-1]
+    assert "unknown constraint controller 'proportional'; known: " in error, error
+    known = error.rpartition('known: ')[2]
+    assert "'p'" in known and 'broken' not in known, error  # the kinds that can be used, not the broken ones

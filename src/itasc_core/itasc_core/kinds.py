@@ -112,8 +112,8 @@ class Registry(Generic[K]):
 
     def __getitem__(self, name: str) -> type[K]:
         if name not in self._entry_points():
-            raise UnknownKind(f"unknown {self.what} '{name}': not one of {sorted(self._entry_points())} (entry point "
-                              f"group '{self.group}')")
+            usable = sorted(n for n in self._entry_points() if n not in self.broken)
+            raise UnknownKind(f"unknown {self.what} '{name}': not one of {usable} (entry point group '{self.group}')")
         return self._load(name)
 
     def __contains__(self, name: object) -> bool:
@@ -128,7 +128,8 @@ def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suff
     members = []
     info = base.model_fields[field]
     default = None if info.is_required() else info.default
-    for name, kind in registry.kinds().items():
+    usable = registry.kinds()
+    for name, kind in usable.items():
         doc = f'{(base.__doc__ or "").strip()}\n\n``{field}: {name}``: {(kind.__doc__ or "").strip()}'
         fields: dict[str, Any] = {field: (Literal[name], Field(name if name == default else ...,
                                                               description=info.description))}
@@ -142,7 +143,7 @@ def variants(base: type[BaseModel], registry: Registry[Any], *, field: str, suff
         return TAG.format(field=field, name=name) if name in registry else None
     return Annotated[Union[tuple(members)], Discriminator(
         tag, custom_error_type='unknown_kind', custom_error_message=f'unknown {registry.what}',
-        custom_error_context=_Context(field=field, what=registry.what, known=', '.join(map(repr, registry.names()))))]
+        custom_error_context=_Context(field=field, what=registry.what, known=', '.join(map(repr, usable))))]
 
 
 def _default_problems(parameters: Any) -> str | None:
