@@ -626,3 +626,42 @@ def test_the_display_process_joins_dds_only_when_the_bootstrap_feeds_it_once_the
         executor.shutdown()
         observer.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize('killed', ['while it comes up', 'while it runs'])
+def test_the_display_process_ends_with_the_bootstrap_however_the_bootstrap_ends(killed):
+    """The display is not set up in the child between fork and exec (``preexec_fn``): DDS runs
+    threads in the bootstrap by then, and a child forked from a threaded process may deadlock before
+    exec (Python's subprocess documentation). It follows the bootstrap itself (``--parent``): a
+    bootstrap killed with SIGKILL, which no handler of its own sees, takes the display with it,
+    whether the display was still importing or already drawing; and the bootstrap gives it its lower
+    priority from outside."""
+    import signal
+    import time
+
+    from processes import Spawned, started_here
+
+    def alive(pid: int) -> bool:
+        try:
+            return Path(f'/proc/{pid}/stat').read_text().rpartition(')')[2].split()[0] != 'Z'
+        except FileNotFoundError:
+            return False
+
+    def displays() -> dict[int, str]:
+        return started_here(command='itasc_bringup.visualization.node')
+
+    with Spawned([*BOOTSTRAP, APP]) as run:
+        application = run.process.pid
+        if killed == 'while it runs':
+            run.wait_for_line(f'[state] {APP}: Active.Run.Running', timeout=120)
+            lower = min(19, os.getpriority(os.PRIO_PROCESS, application) + 10)
+            assert displays() and all(os.getpriority(os.PRIO_PROCESS, pid) == lower for pid in displays())
+        deadline = time.monotonic() + 60.0
+        while not (started := displays()) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert started, run.output()
+        os.kill(application, signal.SIGKILL)
+        deadline = time.monotonic() + 15.0
+        while any(map(alive, started)) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not any(map(alive, started)), f'the display outlived the bootstrap killed {killed}: {started}'

@@ -24,9 +24,7 @@ after the process joined.
 from __future__ import annotations
 
 import atexit
-import ctypes
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -89,13 +87,6 @@ class Visualization:
         return not self.missing(recorder)
 
 
-def _as_display_process() -> None:
-    """In the child, before exec: SIGTERM when the bootstrap dies, however it dies (Linux), and
-    the display's lower priority."""
-    ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    os.nice(DISPLAY_NICENESS)
-
-
 def _is_application(path) -> bool:
     with open(path, encoding='utf-8') as stream:
         data = yaml.safe_load(stream)
@@ -131,9 +122,13 @@ def start_visualization(app: str, *, model, node, composer, recorder=None, obser
     markers = markers_topic(f'/{model.name}')
     if recorder is not None:
         recorder.record(markers, 'visualization_msgs/msg/MarkerArray', qos=DATA_QOS)
+    # No preexec_fn: DDS runs threads in this process by now, and a child forked from a threaded
+    # process may deadlock before exec (Python's subprocess documentation); the display follows
+    # this process itself (``--parent``) and is given its lower priority from here.
     process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve()),
-                                '--feed'], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                               preexec_fn=_as_display_process)
+                                '--feed', '--parent', str(os.getpid())], stdin=subprocess.PIPE,
+                               stdout=subprocess.DEVNULL)
+    os.setpriority(os.PRIO_PROCESS, process.pid, min(19, os.getpriority(os.PRIO_PROCESS, 0) + DISPLAY_NICENESS))
     feed = FeedWriter(node, LatestSamples(node, topics, observers=observers), process.stdin.fileno(),
                       rate=DISPLAY_RATE)
 

@@ -22,8 +22,10 @@ It publishes
 
 from __future__ import annotations
 
-import functools
 import argparse
+import ctypes
+import functools
+import os
 import signal
 import sys
 from collections.abc import Callable
@@ -57,6 +59,7 @@ __all__ = ['Visualizer', 'LATCHED_QOS', 'TF_QOS', 'DISPLAY_RATE', 'markers_topic
            'joint_states_topic', 'main']
 
 DISPLAY_RATE = 30.0
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 #: robot_description and /tf_static: latched, as robot_state_publisher offers them.
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -206,6 +209,13 @@ class Visualizer(Node):
             self._markers.publish(scene_markers(self.app, self.tree, self.views, stamp))
 
 
+def _follows(parent: int) -> bool:
+    """SIGTERM to this process when ``parent`` ends (Linux: PR_SET_PDEATHSIG); False if it ended
+    already (this process was handed to another)."""
+    ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    return os.getppid() == parent
+
+
 def main(argv: list[str] | None = None) -> int:
     from itasc_core.communication.dds import configure_dds
     from itasc_core.composition.loader import ModelError
@@ -219,7 +229,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--rate', type=float, default=DISPLAY_RATE, help='display rate (Hz)')
     parser.add_argument('--feed', action='store_true',
                         help='take the data flow from the bootstrap on stdin (see .feed) instead of subscribing')
+    parser.add_argument('--parent', type=int, metavar='PID',
+                        help='end with this process, however it ends (the bootstrap that started this one)')
     args = parser.parse_args(argv)
+    if args.parent is not None and not _follows(args.parent):
+        return 0
     try:
         app = load_application(resolve_app(args.app))
     except ModelError as err:
