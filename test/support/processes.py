@@ -2,8 +2,10 @@
 
 A test that waits for a line a process never prints must fail with what the process did print,
 and where it is stuck (the Python stacks of its threads, for a process of ours that dumps them on
-SIGUSR1), not hang; and a process a test started (with the composite processes it started in turn) must be
-gone when the test ends, whatever the test's outcome. A leftover holding the test run's output
+SIGUSR1; the processes of its group with their state, and the native stacks of the stuck one when
+gdb is there: a thread stuck in a C library shows in Python only as the call into it), not hang;
+and a process a test started (with the composite processes it started in turn) must be gone when
+the test ends, whatever the test's outcome. A leftover holding the test run's output
 pipe would otherwise keep CI waiting long after pytest finished.
 """
 
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import os
 import queue
+import shutil
 import signal
 import subprocess
 import threading
@@ -115,7 +118,7 @@ class Spawned:
             if line.startswith(prefix):
                 return line
         self.dump_stacks()
-        raise AssertionError(f'no line {prefix!r} within {timeout} s\n' + self.output())
+        raise AssertionError(f'no line {prefix!r} within {timeout} s\n' + self.output() + self.where())
 
     def forget_lines(self) -> list[str]:
         """Drop the stdout lines printed so far from what :meth:`wait_for_line` looks at (they stay
@@ -140,7 +143,7 @@ class Spawned:
             code = self.process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self.dump_stacks()
-            raise AssertionError(f'process still running after {timeout} s\n' + self.output()) from None
+            raise AssertionError(f'process still running after {timeout} s\n' + self.output() + self.where()) from None
         for reader in self._readers:
             reader.join(timeout=10)
         return code
@@ -158,6 +161,27 @@ class Spawned:
                                                       for line in self.stderr[before:]):
             time.sleep(0.05)
         time.sleep(0.2)  # the rest of the dump
+
+    def where(self) -> str:
+        """The processes of this one's group (state, kernel wait channel, age, command line) and the
+        native stacks of this one's threads (gdb, if installed and allowed to attach)."""
+        if self.process.poll() is not None:
+            return ''
+        parts = []
+        for command in (['ps', '-e', '-ww', '-o', 'pgid,pid,ppid,stat,wchan:32,etime,args'],
+                        *([['gdb', '-batch', '-p', str(self.process.pid), '-ex', 'thread apply all bt 30']]
+                          if shutil.which('gdb') else [])):
+            try:
+                done = subprocess.run(command, capture_output=True, text=True, timeout=30)
+            except (OSError, subprocess.TimeoutExpired) as err:
+                parts.append(f'--- {command[0]}: {err}')
+                continue
+            out = done.stdout
+            if command[0] == 'ps':  # the header, and the processes of this one's group
+                lines = out.splitlines()
+                out = '\n'.join(lines[:1] + [line for line in lines[1:] if line.split()[0] == str(self.process.pid)])
+            parts.append(f'--- {command[0]}\n{out[-12000:]}\n{done.stderr[-2000:]}')
+        return '\n' + '\n'.join(parts)
 
     @property
     def out(self) -> str:
