@@ -59,9 +59,7 @@ def run_application(spec, *, before_configure: Callable[[Any, Any], None] | None
     if before_configure is not None:
         before_configure(node, composer)
     raiser = EventRaiser(node, topic=root.events_topic)
-    while raiser.publisher.get_subscription_count() < 1:  # the root's entities (this process's reader)
-        executor.spin_once(timeout_sec=poll)
-    raiser.raise_event(event(spec.name, CONFIGURE))
+    raiser.raise_event(event(spec.name, CONFIGURE))  # the root's Coordinator, in this process: by its event hub
 
     def coordinators(c=composer):
         yield c.coordinator

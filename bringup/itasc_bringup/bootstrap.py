@@ -250,9 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         visualization = start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder,
                                             observers=[watch.observer])
 
-        while raiser.publisher.get_subscription_count() < 1 and not stop_requested:
-            executor.spin_once(timeout_sec=0.01)  # the root's entities listen (this process's reader)
-        raiser.raise_event(event(root.name, CONFIGURE))
+        raiser.raise_event(event(root.name, CONFIGURE))  # the root's Coordinator, in this process: by its event hub
 
         stop_sent_at = last_stop = stop_due_at = None
         undrawn: list[str] = []
