@@ -38,10 +38,12 @@ HEADER = ('| run | achieved Hz | Solver Hz | ticks dropped | tick p50 µs | tick
 
 
 def _growth(tasks: list[dict]) -> str:
-    """What each added Task cost the bring-up, between the sizes measured."""
+    """What each added Task cost the bring-up, between the sizes measured ('' for fewer than two)."""
     sizes = [r for r in tasks if r.get('bring_up_s') is not None]
     steps = [f"{a['tasks']}->{b['tasks']}: {(b['bring_up_s'] - a['bring_up_s']) / (b['tasks'] - a['tasks']):.3f} s"
              for a, b in zip(sizes, sizes[1:])]
+    if not steps:
+        return ''
     return ('Bring-up per added Task (rclpy.init to Running): ' + ', '.join(steps) + '. Fast DDS matches every new '
             'endpoint of a process with every endpoint of the other kind it holds, so what an endpoint costs grows '
             'with the endpoints before it (`bench/bench_endpoints.py`); most of a Task composite\'s endpoints are the '
@@ -88,7 +90,8 @@ def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Pat
     if results.get('tasks'):
         lines += ['', f"## Number of Tasks (Panda, 7 DOF, {results['tasks'][0]['rate_hz']:g} Hz)", '', HEADER]
         lines += [_row(f"{r['tasks']} Tasks", r) for r in results['tasks']]
-        lines += ['', _growth(results['tasks'])]
+        if growth := _growth(results['tasks']):
+            lines += ['', growth]
     if results.get('dof'):
         lines += ['', '## Degrees of freedom (5 Tasks)', '', HEADER]
         lines += [_row(r['robot'], r) for r in results['dof']]
