@@ -88,15 +88,17 @@ def _broken_plugin(site: Path) -> dict[str, str]:
 def test_a_broken_plugin_stops_only_the_models_that_name_it(tmp_path):
     """An installed plugin whose kind cannot be used (its module does not import, the entry point
     names no controller, a default its own rules refuse) stopped every application with a
-    traceback, exit 1, even those that never name it. Now each is said once, the others run, and a
-    model naming one is refused before anything starts, with why."""
+    traceback, exit 1, even those that never name it. Now each is said once (not again by the
+    application's other processes), the others run, and a model naming one is refused before
+    anything starts, with why."""
     env = _broken_plugin(tmp_path / 'site')
     said = {'broken_syntax': "(broken_kinds.syntax:Controller) does not import: SyntaxError",
             'broken_import': "(broken_kinds.needs:Controller) does not import: ModuleNotFoundError",
             'broken_class': '(broken_kinds.wrong:NotOne) is not a ConstraintController',
             'broken_default': '(broken_kinds.wrong:NegativeGain) has defaults its own rules refuse: kp: Input should '
                               'be greater than or equal to 0'}
-    result = subprocess.run([*BOOTSTRAP, 'approach_object', '--duration', '0.5'], capture_output=True, text=True,
+    # 3 s: long enough for the display process, which loads the same kinds, to have said them again
+    result = subprocess.run([*BOOTSTRAP, 'approach_object', '--duration', '3'], capture_output=True, text=True,
                             timeout=120, env=env)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     warnings = [line for line in result.stderr.splitlines() if line.startswith('warning: constraint controller')]

@@ -16,6 +16,7 @@ model uses the kind.
 from __future__ import annotations
 
 import functools
+import os
 import sys
 from collections.abc import Mapping
 from importlib.metadata import EntryPoint, EntryPoints, entry_points
@@ -32,6 +33,12 @@ PROJECT = ('itasc_core', 'itasc_tasks', 'itasc_drivers', 'itasc_bringup')
 #: How a kind's variant is tagged in a union (``condition=above``): the loader leaves such tags out of
 #: the paths its errors name.
 TAG = '{field}={name}'
+
+
+#: The broken kinds said on stderr (``<group>:<name>``, space-separated), by this process or the one
+#: that started it: an application's processes (the display, the composite processes) load the same
+#: kinds, and the user is told once.
+TOLD = 'ITASC_BROKEN_KINDS_TOLD'
 
 
 class UnknownKind(ValueError, LookupError):
@@ -59,7 +66,6 @@ class Registry(Generic[K]):
         self._loaded: dict[str, type[K]] = {}
         #: the kinds that cannot be used, with why (:class:`UnloadableKind`)
         self.broken: dict[str, str] = {}
-        self._told: set[str] = set()
 
     def _entry_points(self) -> dict[str, EntryPoint]:
         if self._points is None:
@@ -97,9 +103,10 @@ class Registry(Generic[K]):
             try:
                 kinds[name] = self._load(name)
             except UnloadableKind as err:
-                if name not in self._told:
-                    self._told.add(name)
+                told = f'{self.group}:{name}'
+                if told not in os.environ.get(TOLD, '').split():
                     print(f'warning: {err}; a model that names it is refused', file=sys.stderr)
+                    os.environ[TOLD] = f'{os.environ.get(TOLD, "")} {told}'.strip()
         return kinds
 
     def names(self) -> list[str]:
