@@ -385,6 +385,75 @@ def test_solver_counts_rows_from_another_process_that_come_late_until_they_are_t
     assert list(solver.outputs['status'].last.active_tasks) == []
 
 
+def _joint_rows(task: str, t: float, joint: int, desired: float) -> ConstraintRows:
+    msg = _rows(task, t, desired)
+    msg.jacobian = [1.0 if j == joint else 0.0 for j in range(len(PANDA))]
+    return msg
+
+
+def test_the_solver_never_combines_rows_of_two_configurations_from_other_processes(world):
+    """Tasks in other processes: each one's rows come over DDS, each at its own lag. Rows describe
+    the configuration they were computed at (their stamp): the Solver combines the rows of the newest
+    configuration every contributing Task has rows of. Before, with no such configuration within
+    ``remote_rows_age``, it took the newest of each: rows of two configurations, in which one Task's
+    row is no longer quite in the row space of another's, and a joint was commanded at its velocity
+    limit for a tick (test_applications.py, per composite). Now it solves again with the rows it
+    last combined while they count, then holds still."""
+    solver = _solver(world, kind='qp')
+    port = solver.inputs['rows']
+    a, b = '/elsewhere/A/Rows/rows', '/elsewhere/B/Rows/rows'
+    port.connect(a)
+    port.connect(b)
+    port.deliver(as_sample(_joint_rows('A', 1.0, 0, 0.1)), a)
+    port.deliver(as_sample(_joint_rows('B', 1.0, 1, 0.2)), b)
+    solver.update(1.01)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.1, 0.2], abs=1e-4)
+    port.deliver(as_sample(_joint_rows('A', 1.02, 0, 0.3)), a)  # A's process is a tick ahead of B's
+    solver.update(1.03)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.1, 0.2], abs=1e-4)
+    port.deliver(as_sample(_joint_rows('B', 1.02, 1, 0.4)), b)
+    solver.update(1.04)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.3, 0.4], abs=1e-4)
+    # B's rows of 1.02 age out of remote_rows_age (0.1 s) while A and B now share no configuration
+    port.deliver(as_sample(_joint_rows('A', 1.1, 0, 0.5)), a)
+    port.deliver(as_sample(_joint_rows('B', 1.11, 1, 0.6)), b)
+    solver.update(1.115)  # the rows last combined (1.02) still count: solved with them again
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.3, 0.4], abs=1e-4)
+    solver.update(1.125)  # they no longer count: no rows of one configuration, it holds still
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
+    assert list(solver.outputs['status'].last.active_tasks) == []
+    port.deliver(as_sample(_joint_rows('A', 1.11, 0, 0.7)), a)
+    solver.update(1.13)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.7, 0.6], abs=1e-4)
+
+
+def test_a_tasks_rows_are_stamped_with_the_configuration_they_describe(world):
+    """A Task in another process computes its tick with the newest relation the Scene's process
+    sent, which may be of an earlier tick: its features, output, rows and state carry the stamp of
+    that relation (the Scene's tick, the configuration), not that of the tick that computed them, so
+    that a Solver can tell rows of one configuration (before: every sample the tick's stamp)."""
+    scene = world.entity(SceneEntity, 'Scene',
+                         robots={'panda': {'urdf': URDF, 'frames': {'tcp': {'link': 'panda_hand_tcp'}}}},
+                         objects={'target': {'xyz': [0.5, 0.1, 0.3]}},
+                         relations={'T': {'o1': 'target', 'o2': 'panda/tcp'}})
+    vkc = world.entity(VKCEntity, 'VKC', task='T', o1='target', o2='panda/tcp', type='cartesian')
+    co = world.entity(ConstraintOutputEntity, 'CO', task='T')
+    spg = world.entity(SetpointGeneratorEntity, 'SPG', task='T', tick_period=DT, kind='hold')
+    cc = world.entity(ConstraintControllerEntity, 'CC', task='T', tick_period=DT, kp=1.0)
+    rows = world.entity(ConstraintRowsEntity, 'Rows', task='T')
+    for wire in [(scene, 'relation_T', vkc, 'relation'), (vkc, 'features', co, 'features'),
+                 (vkc, 'features', spg, 'features'), (co, 'output', cc, 'output'), (spg, 'setpoint', cc, 'setpoint'),
+                 (co, 'output', rows, 'output'), (cc, 'control', rows, 'control')]:
+        link(*wire)
+    scene.inputs['joint_state_panda'].deliver(as_sample(JointState(name=PANDA, position=PANDA_READY)), 'robot')
+    scene.update(1.0)
+    for t in (1.0, 1.01, 1.02):  # the Task's ticks; the Scene's newest relation is of 1.0
+        for entity in (vkc, co, spg, cc, rows):
+            entity.update(t)
+        assert rows.outputs['rows'].last.t == 1.0 and rows.outputs['state'].last.t == 1.0
+        assert vkc.outputs['features'].last.t == 1.0 and co.outputs['output'].last.t == 1.0
+
+
 def test_a_task_switched_off_leaves_the_solvers_problem_at_once_wherever_it_computes(world):
     """Deactivated, the Task's Rows entity writes rows of none: the Solver drops the Task in the
     next tick, in which the rows of the tick before would still count (as those from another process

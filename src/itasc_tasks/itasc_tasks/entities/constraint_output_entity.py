@@ -4,7 +4,7 @@ Calls :class:`itasc_tasks.constraint_output.ConstraintOutput`: y = f(chi_f, q) s
 feature coordinates named in ``outputs`` (none: all) and the matching Jacobian rows. Input
 ``features`` (``Features(<task>)``), output ``output`` (``Output(<task>)``): y with its Jacobian
 on the program-wide joint velocities (``itasc_msgs/Features``), marking a complete rotation
-triple.
+triple, stamped as its features (the configuration they describe).
 """
 
 from __future__ import annotations
@@ -45,5 +45,5 @@ class ConstraintOutputEntity(FunctionalEntity):
             return
         selection = self.co.bind(features.names, features.rotation)
         y, jacobian = selection(features.value, features.jacobian)
-        self.outputs['output'].write(FeaturesSample(t, selection.names, features.joint_names, y, jacobian,
+        self.outputs['output'].write(FeaturesSample(features.t, selection.names, features.joint_names, y, jacobian,
                                                     selection.rotation))

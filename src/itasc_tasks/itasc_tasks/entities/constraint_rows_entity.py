@@ -4,7 +4,8 @@
 It joins the Constraint Output's Jacobian J_y with the Constraint Controller's desired output
 velocity (or bounds), the Task's row ``weights`` and ``priority`` into ``itasc_msgs/ConstraintRows``
 (port ``rows``), and publishes what the Task sees, ``itasc_msgs/TaskState`` (output y, setpoint,
-error and its norm; port ``state``) for Monitors, recordings and plots. Switched off, it writes
+error and its norm; port ``state``) for Monitors, recordings and plots, both stamped as the output:
+the configuration the rows describe, which the Solver matches across Tasks. Switched off, it writes
 rows of none, stamped with when that happened, so that the Task leaves the Solver's problem at once,
 in any process.
 """
@@ -89,9 +90,9 @@ class ConstraintRowsEntity(FunctionalEntity):
         if self._row_weights.shape != (m,):
             self._row_weights = np.broadcast_to(self.weights, (m,)).copy()
         self.outputs['rows'].write(RowsSample(
-            t, self.task, priority=self.priority, inequality=self.inequality, joint_names=output.joint_names,
+            output.t, self.task, priority=self.priority, inequality=self.inequality, joint_names=output.joint_names,
             jacobian=output.jacobian, desired=control.desired, lower=control.lower, upper=control.upper,
             weights=self._row_weights))
         error = control.error
-        self.outputs['state'].write(TaskStateSample(t, self.task, output=output.value, setpoint=control.setpoint,
+        self.outputs['state'].write(TaskStateSample(output.t, self.task, output=output.value, setpoint=control.setpoint,
                                                     error=error, error_norm=math.sqrt(float(error.dot(error)))))

@@ -4,7 +4,9 @@ Builds the chain of its Task's type (:mod:`itasc_tasks.task_types`). Input: for 
 Task's object frames o1 and o2 the Scene's relation between them (``relation``, semantics
 ``Relation(o2|o1)@o1``); for a joint chain the program's joint positions (``joint_state``).
 Output ``features``: the feature coordinates chi_f with their Jacobian on the program-wide joint
-velocities (``itasc_msgs/Features``, semantics ``Features(<task>)``).
+velocities (``itasc_msgs/Features``, semantics ``Features(<task>)``), stamped with its input's
+stamp: the Scene's tick whose configuration they describe (in another process than the Scene's, the
+newest relation there may be of an earlier tick than the one computing).
 
 The entity knows nothing but its ports (boundary of knowledge, paper §3.1): it hands the chain
 (:mod:`itasc_tasks.vkc`) the arrays of its input and writes what the chain returns.
@@ -66,15 +68,15 @@ class VKCEntity(FunctionalEntity):
             joints = self.inputs['joint_state'].latest
             if joints is None:
                 return
-            joint_names = joints.name
+            joint_names, stamp = joints.name, joints.t
             features, jacobian = vkc(joint_names, joints.position)
         else:
             relation = self.inputs['relation'].latest
             if relation is None:
                 return
-            joint_names = relation.joint_names
+            joint_names, stamp = relation.joint_names, relation.t
             pose = relation.pose if relation.pose is not None else features_pose(relation.value,
                                                                                  coordinates='xyz_log3')
             features, jacobian = vkc(pose, relation.jacobian)
-        self.outputs['features'].write(FeaturesSample(t, vkc.names, joint_names, features, jacobian, vkc.rotation))
+        self.outputs['features'].write(FeaturesSample(stamp, vkc.names, joint_names, features, jacobian, vkc.rotation))
 

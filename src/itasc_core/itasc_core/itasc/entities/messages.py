@@ -16,8 +16,10 @@ sample                 message                      written by
 :class:`SolverStatusSample` ``itasc_msgs/SolverStatus``  Solver
 =====================  ===========================  ==============================================
 
-``t`` is the program time of the Scheduler tick that produced the data, so that a Solver can tell
-this tick's rows from stale ones.
+``t`` is the program time of the Scheduler tick that produced the data. What a Task derives from the
+Scene's configuration (features, output, rows, state) keeps the stamp of the Scene's tick it was
+computed from, so that a Solver can tell this tick's rows from stale ones, and rows of one
+configuration from those of another.
 """
 
 from __future__ import annotations

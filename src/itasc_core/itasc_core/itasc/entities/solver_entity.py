@@ -4,18 +4,20 @@ Gathers the constraint rows of every Task (input ``rows``, one ``itasc_msgs/Cons
 sample per connected Task, :class:`.messages.RowsSample`): the newest of each Task in this process
 counts if it is of the current tick; that of a Task in another process (``--deploy per-composite``)
 crosses DDS and comes a tick or more after the tick that triggered it, so it counts while it is at
-most ``remote_rows_age`` old, unless this process switched its composite off. Rows from other
-processes arrive one by one: of those, the Solver takes the newest tick every such Task has
-rows of (it keeps each one's rows for ``remote_rows_age``), not the newest of each. Rows of
-two ticks describe two configurations, and one Task's row is then no longer quite in the row space
-of another's: a higher-priority inequality (an obstacle distance) that the configuration leaves no
-redundancy for was met by a joint velocity hundreds of times the task's (one tick at a joint's
-velocity limit, the next back, now and then in a per-composite run). A Task the
-Coordinator deactivated writes rows of none and drops out at once; one that stops computing drops
-out when its rows get too old. It solves the prioritised problem with the configured solver (a
-registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least squares with
-null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers) within the
-joint position and velocity limits, and writes
+most ``remote_rows_age`` old, unless this process switched its composite off. Rows are stamped with
+the Scene tick whose configuration they describe, and rows from other processes arrive one by one,
+each Task's at its own lag: the Solver then combines, of all contributing Tasks (in this process
+too), the rows of the newest configuration each has rows of (it keeps each one's rows for
+``remote_rows_age``), never the newest of each. Rows of two configurations are no longer quite in
+each other's row space: a higher-priority inequality (an obstacle distance) that the configuration
+leaves no redundancy for was met by a joint velocity hundreds of times the task's (a tick at a
+joint's velocity limit, the next back, now and then in a per-composite run). With no configuration
+in common, it solves again with the rows it last combined while those count, and with none after.
+A Task the Coordinator deactivated writes rows of none and drops out at once; one that stops
+computing drops out when its rows get too old. It solves the prioritised problem with the
+configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
+squares with null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers)
+within the joint position and velocity limits, and writes
 
 * ``command``: the joint velocity setpoints as ``sensor_msgs/JointState`` — ``name`` (the
   program's joints) and ``velocity``; a JointState rather than a bare array so that every
@@ -132,8 +134,10 @@ class SolverEntity(FunctionalEntity):
                                                   position_limit_gain=params.position_limit_gain)
         self.period = params.period
         self.remote_rows_age = params.remote_rows_age
-        #: per topic of a Task in another process: its last rows by tick
-        self._remote_ticks: dict[str, dict[float, RowsSample]] = {}
+        #: per topic of a contributing Task, with Tasks in other processes: its rows by stamp, as long as they count
+        self._configurations: dict[str, dict[float, RowsSample]] = {}
+        #: the stamp of the rows last combined, and those rows by topic
+        self._combined: tuple[float, dict[str, RowsSample]] = (-math.inf, {})
         self._last_t: float | None = None
         self._dt = self.period
         self.status = 'ok'
@@ -180,36 +184,34 @@ class SolverEntity(FunctionalEntity):
         """The rows that count in this tick (see the module's docstring), in Scene order."""
         port = self.inputs['rows']
         fresh, remote_fresh = t - 1.5 * self._dt, t - self.remote_rows_age
-        samples, remote = [], {}
-        for topic, sample in port.samples.items():
-            if sample.t < (remote_fresh if topic in port.remote else fresh) or port.switched_off(topic):
-                continue
-            if topic in port.remote:
-                remote[topic] = sample
-            else:
-                samples.append(sample)
-        if remote or self._remote_ticks:  # in one process (--deploy single): neither
-            samples += self._one_tick(remote, oldest=remote_fresh)
+        counting = {topic: sample for topic, sample in port.samples.items()
+                    if sample.t >= (remote_fresh if topic in port.remote else fresh) and not port.switched_off(topic)}
+        samples = self._one_configuration(counting, oldest=remote_fresh) if port.remote else counting.values()
         return [self._problem_rows(sample) for sample in samples if sample.rows]
 
-    def _one_tick(self, newest: dict[str, RowsSample], *, oldest: float) -> list[RowsSample]:
-        """The rows of the newest tick that every Task of ``newest`` (topic -> its newest rows,
-        from other processes) has rows of, and not before ``oldest``; the newest of each if they
-        have no such tick in common."""
-        for topic in [t for t in self._remote_ticks if t not in newest]:  # gone, switched off or stale
-            del self._remote_ticks[topic]
-        for topic, sample in newest.items():
-            ticks = self._remote_ticks.setdefault(topic, {})
-            ticks[sample.t] = sample
-            while next(iter(ticks)) < oldest:  # as long as rows count (one process may lag the others)
-                del ticks[next(iter(ticks))]
-        if len(newest) < 2:
-            return list(newest.values())
-        common = {t for t in set.intersection(*(set(self._remote_ticks[topic]) for topic in newest)) if t >= oldest}
-        if not common:
-            return list(newest.values())
-        tick = max(common)
-        return [self._remote_ticks[topic][tick] for topic in newest]
+    def _one_configuration(self, counting: dict[str, RowsSample], *, oldest: float) -> list[RowsSample]:
+        """Of the Tasks that contribute rows (``counting``: topic -> its newest rows), the rows of the
+        newest configuration (stamp, not before ``oldest``) that each has rows of; if they have none
+        in common, the rows last combined while those count, else none."""
+        history = self._configurations
+        for topic in [topic for topic in history if topic not in counting or not counting[topic].rows]:
+            del history[topic]  # gone, switched off, stale or writing rows of none
+        contributing = [topic for topic, sample in counting.items() if sample.rows]
+        for topic in contributing:
+            stamps = history.setdefault(topic, {})
+            stamps[counting[topic].t] = counting[topic]
+            while len(stamps) > 1 and next(iter(stamps)) < oldest:  # kept while they count (one process may lag)
+                del stamps[next(iter(stamps))]
+        common = set.intersection(*(set(history[topic]) for topic in contributing)) if contributing else set()
+        last_stamp, last = self._combined
+        if common:
+            stamp = max(common)
+            self._combined = stamp, {topic: history[topic][stamp] for topic in contributing}
+        elif last_stamp < oldest:
+            self._combined = -math.inf, {}
+        else:
+            self._combined = last_stamp, {topic: last[topic] for topic in contributing if topic in last}
+        return list(self._combined[1].values())
 
     def _problem_rows(self, sample: RowsSample) -> ConstraintRows:
         J = sample.jacobian
