@@ -96,6 +96,10 @@ def test_approach_object_with_a_process_per_composite_at_200_hz(tmp_path):
     # 15 s: the hold ends at convergence, ~10 s in (12 s left it a second or two, too little once)
     run_app('approach_object', mcap, duration=15, args=('--deploy', 'per-composite', '--rate', '200'))
     messages = read(mcap)
+    # The Scene's relation reaches each Task process in the Task's trigger, not as a message of its
+    # own; its topic is still there for whoever listens (here the recorder), every tick.
+    relations = of_type(messages, 'itasc_msgs/msg/Features')
+    assert len(relations.get('/approach_object/itasc/Scene/relation_ApproachObject', [])) > 1000
     # the bound is held on rows up to remote_rows_age (0.1 s) old, crossed by what the arm moves
     # meanwhile: 1-2 mm on a machine that keeps up, 4.3 mm seen after the runtime tests here
     check_program_outcome(messages, 'approach_object', crossing=0.01)

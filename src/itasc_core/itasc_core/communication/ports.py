@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterator
 
 from rclpy.context import Context
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 
 from .cdr import received_as_sample, serialize
 from .qos import DATA_QOS, DATA_READER_QOS
@@ -119,6 +120,8 @@ class LocalBus:
         #: The DDS readers of remote topics, by (topic, message type, composite namespace).
         self._readers: dict[tuple[str, type, str], _RemoteReader] = {}
         self._readers_lock = threading.Lock()
+        #: Remote topics whose samples the trigger of this process's composite carries (:mod:`.trigger`).
+        self._carried: set[str] = set()
         #: Namespaces of the composites switched off (their readers do not count as listening).
         self.idle: frozenset[str] = frozenset()
 
@@ -179,15 +182,32 @@ class LocalBus:
 
     def read_remote(self, topic: str, port: 'InputPort') -> '_RemoteReader':
         """The reader of ``topic`` (published in another process) that hands its samples to
-        ``port`` too: the one the inputs of ``port``'s composite already read it with, or a new one."""
+        ``port`` too: the one the inputs of ``port``'s composite already read it with, or a new one
+        (with no DDS subscription if the trigger carries the topic's samples)."""
         key = (topic, port.spec.msg_type, port._node.get_namespace())
         with self._readers_lock:
             reader = self._readers.get(key)
             if reader is None:
-                reader = self._readers[key] = _RemoteReader(topic, port, gone=lambda: self._readers.pop(key, None))
+                reader = self._readers[key] = _RemoteReader(topic, port, gone=lambda: self._readers.pop(key, None),
+                                                            carried=topic in self._carried)
             else:
                 reader.join(port)
             return reader
+
+    def carry(self, topic: str) -> None:
+        """The trigger of this process's composite carries the samples of ``topic`` from now on
+        (its parent's process publishes it): its readers here take them from there, not from DDS."""
+        with self._readers_lock:
+            self._carried.add(topic)
+            for (reader_topic, _, _), reader in self._readers.items():
+                if reader_topic == topic:
+                    reader.carry()
+
+    def deliver_carried(self, topic: str, data: bytes) -> None:
+        """Hand a sample a trigger carried (its CDR bytes) to the inputs that read ``topic``."""
+        for (reader_topic, _, _), reader in list(self._readers.items()):
+            if reader_topic == topic:
+                reader.take(data)
 
     def stop_reading(self, reader: '_RemoteReader', port: 'InputPort') -> None:
         """``port`` takes no more samples from ``reader`` (which goes with its last port)."""
@@ -332,23 +352,41 @@ class _RemoteReader:
     composite that reads it: each reader takes and converts every sample (two Monitors of the
     program composite reading a Task process's state did it twice a tick, ~100 us of CPU each).
     It is a subscription of one of those ports' nodes; when that port leaves, the next one's node
-    subscribes before the old subscription goes (no sample is missed)."""
+    subscribes before the old subscription goes (no sample is missed). A topic whose samples the
+    process's trigger carries (``carried``, :meth:`LocalBus.carry`) needs no subscription: the
+    Scheduler hands the reader each sample (:meth:`take`)."""
 
-    def __init__(self, topic: str, port: 'InputPort', *, gone: Callable[[], object]) -> None:
+    def __init__(self, topic: str, port: 'InputPort', *, gone: Callable[[], object], carried: bool = False) -> None:
         self.topic = topic
         self.ports: tuple[InputPort, ...] = (port,)
         self._gone = gone
-        self._to_sample, self._raw = received_as_sample(port.spec.msg_type)  # CDR bytes: no ROS message built
+        self._msg_type = port.spec.msg_type
+        self._to_sample, self._raw = received_as_sample(self._msg_type)  # CDR bytes: no ROS message built
+        self._carried = carried
         self._subscription = self._subscribe(port)
 
     def _subscribe(self, port: 'InputPort') -> tuple['InputPort', Any]:
-        return port, port._node.create_subscription(port.spec.msg_type, self.topic, self._received,
+        if self._carried:
+            return port, None
+        return port, port._node.create_subscription(self._msg_type, self.topic, self._received,
                                                     DATA_READER_QOS, raw=self._raw)
 
     def _received(self, received: Any) -> None:
         sample = self._to_sample(received)
         for port in self.ports:
             port.deliver(sample, self.topic)
+
+    def carry(self) -> None:
+        """The trigger carries the samples from now on: no DDS subscription."""
+        self._carried = True
+        owner, subscription = self._subscription
+        self._subscription = owner, None
+        if subscription is not None:
+            owner._node.destroy_subscription(subscription)
+
+    def take(self, data: bytes) -> None:
+        """A sample the trigger carried, as its CDR bytes."""
+        self._received(data if self._raw else deserialize_message(data, self._msg_type))
 
     def join(self, port: 'InputPort') -> None:
         self.ports += (port,)
@@ -362,7 +400,8 @@ class _RemoteReader:
             self._subscription = self._subscribe(self.ports[0])
         else:
             self._gone()
-        owner._node.destroy_subscription(subscription)
+        if subscription is not None:
+            owner._node.destroy_subscription(subscription)
 
 
 class InputPort:

@@ -39,7 +39,7 @@ from ..communication.event_names import (BIND, CHECK_FAULTS, CLEANED, CLEANUP, C
                                           CONNECTED, CONNECTION_REFUSED, DEPLOY, DEPLOY_FAILED, DEPLOYED,
                                           FAULTS_CHECKED, SAFETY_EVENT, STOP, STOPPED, event, owner_of)
 from ..communication.events import EventListener, EventRaiser, events_topic
-from ..communication.ports import SemanticMismatch, check_connection
+from ..communication.ports import LocalBus, SemanticMismatch, check_connection
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
 from ..computation.outside_events import OutsideEvents
@@ -177,6 +177,9 @@ class Composer(Entity):
             return
         if msg.name == event(self.composite.name, BIND):
             port, _, topic = msg.detail.partition('|')
+            topic, _, carried = topic.partition('|')
+            if carried:  # the parent's process publishes it: the trigger carries its samples
+                LocalBus.of(self.context).carry(topic)
             self.bind_export(port, topic)
             return
         step = self._steps.get(msg.name)
@@ -404,12 +407,14 @@ class Composer(Entity):
         if composer is not None:
             composer.bind_export(port, topic)
         else:
-            # The child lives in another process: ask its Composer on the child's event topic.
+            # The child lives in another process: ask its Composer on the child's event topic. If
+            # this process publishes the topic, the child's trigger carries its samples.
             namespace = f'{self.composite.namespace}/{child}'
             raiser = self._child_raisers.get(namespace)
             if raiser is None:
                 raiser = self._child_raisers[namespace] = self.raiser(topic=events_topic(namespace))
-            raiser.raise_event(event(child, BIND), detail=f'{port}|{topic}')
+            carried = LocalBus.of(self.context).lookup(topic) is not None and self.scheduler.carry(child, topic)
+            raiser.raise_event(event(child, BIND), detail=f'{port}|{topic}' + ('|carried' if carried else ''))
 
     def bind_export(self, port: str, topic: str) -> None:
         """Connect the inside of exported input ``port`` to ``topic``."""

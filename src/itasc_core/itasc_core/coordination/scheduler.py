@@ -17,10 +17,10 @@ from __future__ import annotations
 import gc
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from std_msgs.msg import Float64
+from itasc_msgs.msg import Trigger
 
 from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENGAGED, SAFETY, SAFETY_EVENT,
                                           SCHEDULER_ACTIVATE, SCHEDULER_ACTIVATED, SCHEDULER_INITIALIZE,
@@ -28,7 +28,7 @@ from ..communication.event_names import (ACTIVATE, DEACTIVATE, DISENGAGE, DISENG
 from ..communication.cdr import received_as_sample, serialize
 from ..communication.ports import LocalBus
 from ..communication.qos import DATA_QOS, DATA_READER_QOS
-from ..communication.samples import Float64Sample
+from ..communication.trigger import TriggerSample, trigger_of
 from ..computation.functional_entity import FunctionalEntity
 from ..computation.monitor import Monitor
 from ..entity import CompositeContext, Entity
@@ -44,9 +44,12 @@ class _Item:
     enabled: bool = True
     #: A child composite in this process: its Scheduler, reached through its Composer.
     child: Any = None
-    #: A child composite in another process: the publisher of its trigger topic, its namespace.
+    #: A child composite in another process: the publisher of its trigger topic, its namespace,
+    #: and the topics of outputs in this process it reads, whose samples its trigger carries (each
+    #: with the newest sample carried so far).
     trigger: Any = None
     namespace: str | None = None
+    carried: dict[str, Any] = field(default_factory=dict)
 
 
 class Scheduler(Entity):
@@ -80,13 +83,15 @@ class Scheduler(Entity):
                                      accept=self._accepts, immediate=True)
         self._trigger_sub = None
         if remote_trigger:
-            to_sample, raw = received_as_sample(Float64)  # the CDR bytes, no ROS message built
+            to_sample, raw = received_as_sample(Trigger)  # the CDR bytes, no ROS message built
             self._trigger_sub = self.create_subscription(
-                Float64, composite.trigger_topic, lambda received: self._on_trigger(to_sample(received)),
+                Trigger, composite.trigger_topic, lambda received: self._on_trigger(to_sample(received)),
                 DATA_READER_QOS, raw=raw)
 
-    def _on_trigger(self, sample: Float64Sample) -> None:
-        self.tick(sample.data)
+    def _on_trigger(self, sample: TriggerSample) -> None:
+        for topic, data in sample.carried():  # what the parent's entities wrote in this tick, first
+            self._bus.deliver_carried(topic, data)
+        self.tick(sample.t)
         if self._after_trigger is not None:
             self._after_trigger()
 
@@ -100,11 +105,30 @@ class Scheduler(Entity):
         self._insert(_Item(name, child.tick, enabled=enabled, child=child), None)
 
     def add_remote_child(self, name: str, namespace: str, *, enabled: bool = True) -> None:
-        publisher = self.create_publisher(Float64, f'{namespace}/trigger', DATA_QOS)
+        publisher = self.create_publisher(Trigger, f'{namespace}/trigger', DATA_QOS)
+        carried: dict[str, Any] = {}
+        lookup = self._bus.lookup
 
         def trigger(t: float) -> None:
-            publisher.publish(serialize(Float64Sample(t)))  # CDR bytes: no message built and converted
-        self._insert(_Item(name, trigger, enabled=enabled, trigger=publisher, namespace=namespace), None)
+            new = []
+            for topic, sent in carried.items():
+                output = lookup(topic)  # the output of the topic now (a swapped entity's is another)
+                if output is not None and output.last is not None and output.last is not sent:
+                    carried[topic] = output.last
+                    new.append((topic, output.last))
+            publisher.publish(serialize(trigger_of(t, new)))  # CDR bytes: no message built and converted
+        self._insert(_Item(name, trigger, enabled=enabled, trigger=publisher, namespace=namespace, carried=carried),
+                     None)
+
+    def carry(self, name: str, topic: str) -> bool:
+        """The trigger of child ``name`` (in another process) carries the samples the output of
+        ``topic`` (in this process) writes, from now on (:mod:`..communication.trigger`); False if
+        there is no such child."""
+        for item in self._items:
+            if item.name == name and item.trigger is not None:
+                item.carried.setdefault(topic, None)
+                return True
+        return False
 
     def add_monitor(self, monitor: Monitor) -> None:
         self._monitors.append(monitor)
