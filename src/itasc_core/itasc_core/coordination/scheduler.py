@@ -111,7 +111,7 @@ class Scheduler(Entity):
 
         def trigger(t: float) -> None:
             new = []
-            for topic, sent in carried.items():
+            for topic, sent in tuple(carried.items()):  # a re-composition may add a topic meanwhile
                 output = lookup(topic)  # the output of the topic now (a swapped entity's is another)
                 if output is not None and output.last is not None and output.last is not sent:
                     carried[topic] = output.last
