@@ -12,7 +12,7 @@ from std_msgs.msg import Float64
 
 from itasc_core.communication.ports import InputPort, OutputPort, PortSpec
 from itasc_core.composition.deployment import Runtime, make_executor
-from ros_teardown import destroy_all
+from ros_teardown import destroy_all, two_contexts
 
 TOPIC = '/bus/source/value'
 
@@ -55,12 +55,7 @@ def test_a_switched_off_composite_is_sent_nothing_and_gets_the_first_sample_afte
     """A Task composite in another process that its parent's Scheduler switched off: its readers do
     not count as listening, so no sample is sent to it; another reader (the recorder, ``ros2 topic
     echo``) still gets them all."""
-    rclpy.init()
-    other = Context()
-    rclpy.init(context=other)
-    executor, theirs = make_executor(), make_executor(context=other)
-    runtime = Runtime(executor=executor, namespace='/bus')
-    try:
+    with two_contexts('/bus') as (executor, runtime, theirs, other):
         node = rclpy.create_node('Scene', namespace='/bus/itasc')
         executor.add_node(node)
         output = OutputPort(node, _spec('output'))
@@ -105,9 +100,6 @@ def test_a_switched_off_composite_is_sent_nothing_and_gets_the_first_sample_afte
         assert echo.received > 0 and task.latest.data == 4.0
         echo.disconnect()
         task.disconnect()
-    finally:
-        destroy_all(theirs, context=other)
-        destroy_all(executor)
 
 
 def test_a_reader_in_another_process_gets_the_message_of_each_sample_written():
@@ -162,12 +154,7 @@ def test_the_inputs_of_a_composite_share_one_reader_of_a_remote_topic_and_it_out
     the port whose node holds the reader goes (a removed entity), the other's node reads on, and
     once the last port went the process holds no reader of the topic. An input of another composite
     of the process has a reader of its own (a composite switched off does not listen)."""
-    rclpy.init()
-    other = Context()
-    rclpy.init(context=other)
-    executor, theirs = make_executor(), make_executor(context=other)
-    Runtime(executor=executor, namespace='/bus')
-    try:
+    with two_contexts('/bus') as (executor, _, theirs, other):
         source = rclpy.create_node('source', namespace='/bus/task', context=other)
         theirs.add_node(source)
         output = OutputPort(source, _spec('output'))
@@ -202,7 +189,3 @@ def test_the_inputs_of_a_composite_share_one_reader_of_a_remote_topic_and_it_out
         received = second.received
         assert send_until(lambda: elsewhere.latest.data == 4.0, 4.0)
         assert second.received == received
-    finally:
-        destroy_all(executor)
-        destroy_all(theirs)
-        rclpy.try_shutdown(context=other)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import time
 
 import rclpy
-from rclpy.context import Context
 from std_msgs.msg import Float64
 
 from itasc_core.communication.cdr import sample_decoder, serialize
@@ -16,11 +15,10 @@ from itasc_core.communication.ports import InputPort, OutputPort, PortSpec
 from itasc_core.communication.qos import DATA_QOS
 from itasc_core.communication.samples import Float64Sample
 from itasc_core.communication.trigger import trigger_of
-from itasc_core.composition.deployment import Runtime, make_executor
 from itasc_core.coordination.scheduler import Scheduler
 from itasc_core.entity import CompositeContext
 from itasc_msgs.msg import Trigger
-from ros_teardown import destroy_all
+from ros_teardown import two_contexts
 
 TOPIC = '/carry/itasc/Scene/relation_T'
 SPEC = PortSpec(name='relation', direction='output', msg_type=Float64, type='signal', id=TOPIC)
@@ -38,12 +36,7 @@ def _spin_until(condition, *executors, timeout: float = 10.0) -> bool:
 def test_the_parents_trigger_carries_each_new_sample_of_an_output_its_child_reads():
     """The parent's Scheduler triggers the child in another process with what the output wrote
     since the last trigger (nothing again if it did not write)."""
-    rclpy.init()
-    other = Context()
-    rclpy.init(context=other)
-    executor, theirs = make_executor(), make_executor(context=other)
-    Runtime(executor=executor, namespace='/carry')
-    try:
+    with two_contexts('/carry') as (executor, _, theirs, other):
         parent = Scheduler(composite=CompositeContext(name='itasc', namespace='/carry/itasc'))
         executor.add_node(parent)
         output = OutputPort(parent, SPEC)
@@ -66,20 +59,12 @@ def test_the_parents_trigger_carries_each_new_sample_of_an_output_its_child_read
         assert first.t == 1.0 and [(topic, decode_value(data).data) for topic, data in first.carried()] == [
             (TOPIC, 2.5)]
         assert second.t == 1.01 and list(second.carried()) == []
-    finally:
-        destroy_all(theirs, context=other)
-        destroy_all(executor)
 
 
 def test_a_child_hands_what_its_trigger_carries_to_its_inputs_before_it_ticks():
     """The child's input of a carried topic has no DDS subscription: it gets the sample from the
     trigger, before the tick the trigger starts."""
-    rclpy.init()
-    other = Context()
-    rclpy.init(context=other)
-    executor, theirs = make_executor(), make_executor(context=other)
-    runtime = Runtime(executor=executor, namespace='/carry')
-    try:
+    with two_contexts('/carry') as (executor, runtime, theirs, other):
         child = Scheduler(composite=CHILD, remote_trigger=True)
         executor.add_node(child)
         vkc = rclpy.create_node('VKC', namespace=CHILD.namespace)
@@ -97,6 +82,3 @@ def test_a_child_hands_what_its_trigger_carries_to_its_inputs_before_it_ticks():
         publisher.publish(serialize(trigger_of(3.0, [(TOPIC, Float64Sample(0.75))])))
         assert _spin_until(lambda: seen_at_tick, executor, theirs)
         assert seen_at_tick == [(3.0, 0.75)] and relation.remote == {TOPIC}
-    finally:
-        destroy_all(theirs, context=other)
-        destroy_all(executor)

@@ -9,9 +9,13 @@ it discovers another (seen here: ``DomainParticipant::set_listener`` spinning fo
 
 from __future__ import annotations
 
-import rclpy
+from collections.abc import Iterator
+from contextlib import contextmanager
 
-__all__ = ['destroy_all']
+import rclpy
+from rclpy.context import Context
+
+__all__ = ['destroy_all', 'two_contexts']
 
 
 def destroy_all(executor, *nodes, context=None) -> None:
@@ -26,3 +30,21 @@ def destroy_all(executor, *nodes, context=None) -> None:
             pass
     executor.shutdown()
     rclpy.try_shutdown(context=context)
+
+
+@contextmanager
+def two_contexts(namespace: str) -> Iterator[tuple]:
+    """Two processes' worth of ROS in this interpreter: ``(executor, runtime, theirs, other)``, the
+    default context's executor and process runtime (its bus), and another context with its executor
+    (DDS between them, no bus in common); every node of both destroyed at the end."""
+    from itasc_core.composition.deployment import Runtime, make_executor
+    rclpy.init()
+    other = Context()
+    rclpy.init(context=other)
+    executor, theirs = make_executor(), make_executor(context=other)
+    runtime = Runtime(executor=executor, namespace=namespace)
+    try:
+        yield executor, runtime, theirs, other
+    finally:
+        destroy_all(theirs, context=other)
+        destroy_all(executor)
