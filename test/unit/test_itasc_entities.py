@@ -391,7 +391,7 @@ def _joint_rows(task: str, t: float, joint: int, desired: float) -> ConstraintRo
     return msg
 
 
-def test_the_solver_never_combines_rows_of_two_configurations_from_other_processes(world):
+def test_the_solver_never_combines_rows_of_two_configurations_from_other_processes(world, capfd):
     """Tasks in other processes: each one's rows come over DDS, each at its own lag. Rows describe
     the configuration they were computed at (their stamp): the Solver combines the rows of the newest
     configuration every contributing Task has rows of. Before, with no such configuration within
@@ -422,6 +422,7 @@ def test_the_solver_never_combines_rows_of_two_configurations_from_other_process
     solver.update(1.125)  # they no longer count: no rows of one configuration, it holds still
     assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
     assert list(solver.outputs['status'].last.active_tasks) == []
+    assert 'the rows of A, B share no configuration within remote_rows_age (0.1 s)' in capfd.readouterr().err
     port.deliver(as_sample(_joint_rows('A', 1.11, 0, 0.7)), a)
     solver.update(1.13)
     assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.7, 0.6], abs=1e-4)

@@ -12,7 +12,8 @@ too), the rows of the newest configuration each has rows of (it keeps each one's
 each other's row space: a higher-priority inequality (an obstacle distance) that the configuration
 leaves no redundancy for was met by a joint velocity hundreds of times the task's (a tick at a
 joint's velocity limit, the next back, now and then in a per-composite run). With no configuration
-in common, it solves again with the rows it last combined while those count, and with none after.
+in common, it solves again with the rows it last combined while those count, and with none after
+(and says so in its log).
 A Task the Coordinator deactivated writes rows of none and drops out at once; one that stops
 computing drops out when its rows get too old. It solves the prioritised problem with the
 configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
@@ -208,6 +209,11 @@ class SolverEntity(FunctionalEntity):
             stamp = max(common)
             self._combined = stamp, {topic: history[topic][stamp] for topic in contributing}
         elif last_stamp < oldest:
+            if last:
+                tasks = ', '.join(sorted(counting[topic].task for topic in contributing))
+                self.get_logger().warning(f'the rows of {tasks} share no configuration within remote_rows_age '
+                                          f'({self.remote_rows_age:g} s): the robot holds still until they do',
+                                          throttle_duration_sec=1.0)
             self._combined = -math.inf, {}
         else:
             self._combined = last_stamp, {topic: last[topic] for topic in contributing if topic in last}
