@@ -457,18 +457,30 @@ ARM = three_joint_arm()  # the robot of arm_reach
 
 @pytest.fixture(scope='module')
 def arm_run(tmp_path_factory) -> Path:
-    """A 6 s recording of ``arm_reach``: not a Panda, two robots far from the origin. The display
-    process (its markers, ``/tf_static``) starts once the application runs, at a lower priority, and
-    is drawing 1.9-2.3 s after Running on a quiet machine: a 2 s run held none of it in a clean-clone
-    CI run."""
+    """A recording of ``arm_reach`` (not a Panda, two robots far from the origin) that holds the
+    display's drawing: the run is stopped (Ctrl-C) once the display has drawn 30 times. The display
+    process (its markers, ``/tf_static``) starts once the application runs, at a lower priority:
+    it draws 1.9-2.3 s after Running on a quiet machine, later on a busy one, and a run of a fixed
+    2 s held none of it in a clean-clone CI run."""
+    import signal
+
+    from processes import Spawned
+    from rclpy.qos import qos_profile_sensor_data
+    from ros_client import ros_node, spin_until
+    from visualization_msgs.msg import MarkerArray
+
     tmp_path = tmp_path_factory.mktemp('arm')
     model = two_arms(tmp_path, name='arm_reach', drivers=[
         {'robot': 'arm', 'kind': 'simulated', 'initial': {'j2': 0.3, 'j3': 0.5}},
         {'robot': 'other', 'kind': 'simulated', 'initial': {'b_j2': -0.3, 'b_j3': 0.5}}])
     mcap = tmp_path / 'run.mcap'
-    result = subprocess.run([*BOOTSTRAP, str(model), '--duration', '6', '--record', str(mcap)],
-                            capture_output=True, text=True, timeout=180)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    with ros_node('arm_run_watch') as (node, executor), \
+            Spawned([*BOOTSTRAP, str(model), '--record', str(mcap)]) as run:
+        drawn: list[MarkerArray] = []
+        node.create_subscription(MarkerArray, '/arm_reach/markers', drawn.append, qos_profile_sensor_data)
+        assert spin_until(executor, lambda: len(drawn) >= 30, timeout=120), run.output()
+        run.send_signal(signal.SIGINT)
+        assert run.finish(timeout=120) == 0, run.output()
     return mcap
 
 
