@@ -41,7 +41,7 @@ class TriggerSample(Sample):
         """Each carried sample: its topic and CDR bytes."""
         start = 0
         data = self.data
-        for topic, size in zip(self.topics, self.sizes.tolist() if hasattr(self.sizes, 'tolist') else self.sizes):
+        for topic, size in zip(self.topics, self.sizes.tolist()):
             yield topic, data[start:start + size].tobytes()
             start += size
 

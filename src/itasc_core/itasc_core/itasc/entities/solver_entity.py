@@ -203,10 +203,10 @@ class SolverEntity(FunctionalEntity):
             stamps[counting[topic].t] = counting[topic]
             while len(stamps) > 1 and next(iter(stamps)) < oldest:  # kept while they count (one process may lag)
                 del stamps[next(iter(stamps))]
-        common = set.intersection(*(set(history[topic]) for topic in contributing)) if contributing else set()
+        first, *others = [history[topic] for topic in contributing] or [{}]
+        stamp = max((s for s in first if all(s in other for other in others)), default=None)
         last_stamp, last = self._combined
-        if common:
-            stamp = max(common)
+        if stamp is not None:
             self._combined = stamp, {topic: history[topic][stamp] for topic in contributing}
         elif last_stamp < oldest:
             if last:
