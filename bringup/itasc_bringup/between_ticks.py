@@ -26,17 +26,16 @@ to wait again): ``approach_object`` at 1 kHz takes 35-37 % of the period spinnin
 ticks 1.1-1.5x longer, when its first ticks took less than half the period or a quiet moment took
 the spinning ones below 30 %. ``spin`` and ``wait`` choose for good.
 
-A spinning thread only wins while the core it holds had little else to do. ``auto`` therefore spins
-only while the machine's cores are not all busy (:class:`IdleCores`): at least :data:`IDLE_TO_SPIN`
-of a core idle to begin, at least :data:`IDLE_WHILE_SPINNING` besides the spinning one to go on.
-Otherwise it takes a core from the processes whose ticks the application waits for:
-``approach_object`` ``--deploy per-composite`` at 500 Hz on the 2-core VM, where five processes
-share the cores (0.08 of a core idle waiting, none spinning), began to spin in 3 of 10 runs (its
+A spinning thread only wins while the core it holds has nothing else to do: ``auto`` does not spin
+while composites of the application run in other processes of this machine (``alone()`` false,
+``--deploy per-composite``), whose ticks need every core. ``approach_object`` per composite at
+500 Hz on the 2-core VM (five processes, 0.08 of a core idle) began to spin in 3 of 10 runs (its
 ticks grew to 30 % of the period under load); told to spin, two pairs of 20 s runs: the Solver
-stepped at 425/417 Hz against 439/462 Hz waiting, and its Tasks' rows were too old to be combined
-(the robot held still) 8/5 times against 2/1. ``--deploy single --record`` at 1 kHz, whose writer
-process takes part of the other core, still spins (0.4-0.46 of a core idle either way: 967-996 Hz
-spinning, 922-930 Hz waiting).
+stepped at 425/417 Hz against 439/462 Hz waiting, and the rows of its Tasks were too old to be
+combined (the robot held still) 8/5 times against 2/1. The machine's idle time would say the same
+of any other load, but it is no guide while an application starts (its display process takes ~2 s
+of CPU): a threshold on it (a quarter of a core) kept ``--deploy single --record`` at 1 kHz from
+spinning through its first seconds, 971-994 Hz against 995-998 Hz in four pairs.
 """
 
 from __future__ import annotations
@@ -46,8 +45,7 @@ import statistics
 import time
 from typing import Any, Callable
 
-__all__ = ['BetweenTicks', 'IDLE_TO_SPIN', 'IDLE_WHILE_SPINNING', 'IdleCores', 'MAX_SLOWDOWN', 'MODES', 'SPIN_FROM',
-           'SPIN_RATE', 'WAIT_BELOW']
+__all__ = ['BetweenTicks', 'MAX_SLOWDOWN', 'MODES', 'SPIN_FROM', 'SPIN_RATE', 'WAIT_BELOW']
 
 MODES = ('auto', 'spin', 'wait')
 #: ``auto`` spins at this rate [Hz] and more ...
@@ -75,37 +73,6 @@ RECENT = 200
 DECIDE_PERIOD = 0.25
 #: Ticks older than this [s] do not count: a Timer whose hierarchy stopped computing is idle.
 STALE = 0.5
-#: ``auto`` begins to spin only if this many of the machine's cores were idle since it last looked ...
-IDLE_TO_SPIN = 0.25
-#: ... and goes on only while this many besides the one it spins on were.
-IDLE_WHILE_SPINNING = 0.15
-
-
-class IdleCores:
-    """How many of the machine's cores were idle since the previous call (Linux's ``/proc/stat``: the
-    share of the time counted that was idle or waiting for I/O, times the number of cores); None
-    where that cannot be read (``auto`` then spins as if a core were free)."""
-
-    def __init__(self, path: str = '/proc/stat') -> None:
-        self._path = path
-        self._last = self._read()
-
-    def _read(self) -> tuple[int, int, int] | None:
-        """Idle and all clock ticks over all cores, and the number of cores."""
-        try:
-            with open(self._path) as stat:
-                lines = [line.split() for line in stat if line.startswith('cpu')]
-            counted = [int(v) for v in lines[0][1:9]]  # user .. steal (guest time is counted in user)
-        except (OSError, IndexError, ValueError):
-            return None
-        return counted[3] + counted[4], sum(counted), len(lines) - 1
-
-    def __call__(self) -> float | None:
-        now, last = self._read(), self._last
-        self._last = now
-        if now is None or last is None or now[1] <= last[1]:
-            return None
-        return (now[0] - last[0]) / (now[1] - last[1]) * now[2]
 
 
 class BetweenTicks:
@@ -113,15 +80,14 @@ class BetweenTicks:
 
     def __init__(self, mode: str = 'auto', *, timer: Callable[[], Any],
                  on_change: Callable[[bool, float], None] | None = None,
-                 clock: Callable[[], float] = time.monotonic,
-                 idle_cores: Callable[[], float | None] | None = None) -> None:
-        """``on_change(spinning, share)``: told when ``auto`` starts or stops spinning;
-        ``idle_cores()``: the machine's idle cores since the previous call (:class:`IdleCores`)."""
+                 clock: Callable[[], float] = time.monotonic, alone: Callable[[], bool] = lambda: True) -> None:
+        """``on_change(spinning, share)``: told when ``auto`` starts or stops spinning; ``alone()``:
+        whether no composite of the application computes in another process of this machine."""
         if mode not in MODES:
             raise ValueError(f'between ticks: {mode!r} is not one of {MODES}')
         self.mode = mode
         self._timer = timer
-        self._idle_cores = idle_cores if idle_cores is not None else IdleCores()
+        self._alone = alone
         self._on_change = on_change
         self._clock = clock
         self.spinning = mode == 'spin'
@@ -153,14 +119,12 @@ class BetweenTicks:
             return self.spinning
         self._decided_at = self._clock()
         share = self.share()
-        idle = self._idle_cores()
+        alone = self._alone()
         if not self.spinning:
-            if share >= SPIN_FROM and (idle is None or idle >= IDLE_TO_SPIN):
+            if share >= SPIN_FROM and alone:
                 self._spun_at, self._waiting_share, self._slowdown = self._clock(), share, None
                 self._change(True, share)
-        elif not share:  # stale, or no longer fast: nothing to spin for
-            self._change(False, share)
-        elif idle is not None and idle < IDLE_WHILE_SPINNING:  # its core is wanted by other processes
+        elif not share or not alone:  # stale, or no longer fast: nothing to spin for; or its core is needed
             self._change(False, share)
         else:
             if self._slowdown is None:

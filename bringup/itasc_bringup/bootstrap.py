@@ -263,7 +263,8 @@ def main(argv: list[str] | None = None) -> int:
             if share:  # not when the hierarchy stopped computing
                 console.show(f'{"spinning" if spinning else "waiting"} between ticks: they take {share:.0%} of '
                              'the period (--between-ticks)')
-        between = BetweenTicks(args.between_ticks, timer=lambda: composer.timer, on_change=between_changed)
+        between = BetweenTicks(args.between_ticks, timer=lambda: composer.timer, on_change=between_changed,
+                               alone=lambda: not runtime.local_processes)
         while True:
             between.step(executor)
             if recorder is not None:

@@ -1,15 +1,16 @@
 """What the bootstrap's thread does between ticks (itasc_bringup.between_ticks): ``auto`` spins at
 250 Hz and more once the ticks take 30 % of the period while it waits, and waits again once they
 would take less than 20 % waiting (the spinning share times the slowdown it measured when it began
-to spin), and only while the machine has a core to spare; spinning, it runs the Timer's due ticks
-itself and serves the executor only while the next tick is far, yet every 2 ms at least."""
+to spin), and never while composites of the application compute in other processes of the
+machine; spinning, it runs the Timer's due ticks itself and serves the executor only while the
+next tick is far, yet every 2 ms at least."""
 
 from collections import deque
 
 import pytest
 
-from itasc_bringup.between_ticks import (IDLE_TO_SPIN, IDLE_WHILE_SPINNING, MAX_SLOWDOWN, RECENT, SERVE_AT_LEAST,
-                                         SERVE_BEFORE, STALE, WAIT, WAIT_BELOW, BetweenTicks, IdleCores)
+from itasc_bringup.between_ticks import (MAX_SLOWDOWN, RECENT, SERVE_AT_LEAST, SERVE_BEFORE, STALE, WAIT, WAIT_BELOW,
+                                         BetweenTicks)
 
 
 class _Clock:
@@ -53,26 +54,11 @@ class _Executor:
         self.waits.append(timeout_sec)
 
 
-class _Machine:
-    """The machine's idle cores, as ``auto`` sees them (two idle cores unless a test says otherwise)."""
-
-    def __init__(self) -> None:
-        self.idle: float | None = 2.0
-
-    def __call__(self) -> float | None:
-        return self.idle
-
-
 @pytest.fixture
-def machine():
-    return _Machine()
-
-
-@pytest.fixture
-def auto(machine):
+def auto():
     clock = _Clock()
     timer, executor, changes = _Timer(clock), _Executor(), []
-    between = BetweenTicks('auto', timer=lambda: timer, clock=clock, idle_cores=machine,
+    between = BetweenTicks('auto', timer=lambda: timer, clock=clock,
                            on_change=lambda spinning, share: changes.append((spinning, round(share, 2))))
     return between, timer, executor, clock, changes
 
@@ -134,10 +120,10 @@ def test_auto_counts_the_slowdown_on_ticks_since_it_began_to_spin_and_at_most_tw
     assert not between.spinning
 
 
-def test_auto_waits_below_250_hz_however_long_the_ticks(auto, machine):
+def test_auto_waits_below_250_hz_however_long_the_ticks(auto):
     _, _, executor, clock, changes = auto
     timer = _Timer(clock, rate=100.0)  # a 10 ms period: ~0.2 ms a tick do not decide the rate
-    between = BetweenTicks('auto', timer=lambda: timer, clock=clock, idle_cores=machine)
+    between = BetweenTicks('auto', timer=lambda: timer, clock=clock)
     timer.ran_for(RECENT, share=0.9)
     between.step(executor)
     assert not between.spinning and executor.waits == [WAIT]
@@ -153,54 +139,22 @@ def test_auto_waits_once_the_timer_stopped_computing(auto):
     assert not between.spinning and changes[-1] == (False, 0.0) and executor.waits[-1] == WAIT
 
 
-def test_auto_spins_only_while_the_machine_has_a_core_to_spare(auto, machine):
-    """Composites in other processes of the machine (``--deploy per-composite``) or any other load:
-    a spinning thread would take the core their ticks need."""
-    between, timer, executor, clock, changes = auto
-    machine.idle = 0.1  # the other processes keep both cores busy
+def test_auto_does_not_spin_while_composites_compute_in_other_processes_of_the_machine():
+    """``--deploy per-composite``: a spinning thread would take the core their ticks need."""
+    clock, executor, others = _Clock(), _Executor(), [1]
+    timer = _Timer(clock)
+    between = BetweenTicks('auto', timer=lambda: timer, clock=clock, alone=lambda: not others)
     timer.ran_for(RECENT, share=0.6)
     between.step(executor)
     assert not between.spinning and executor.waits == [WAIT]
-    machine.idle = IDLE_TO_SPIN  # enough of a core idle
-    timer.ran_for(RECENT, share=0.6)
-    between.step(executor)
-    assert between.spinning and changes == [(True, 0.6)]
-    machine.idle = IDLE_WHILE_SPINNING  # besides the core it spins on
+    others.clear()  # they ended (a re-composition, a stop): alone again
     timer.ran_for(RECENT, share=0.6)
     between.step(executor)
     assert between.spinning
-    machine.idle = 0.05  # the other processes got busy: give the core back
+    others.append(1)
     timer.ran_for(RECENT, share=0.6)
     between.step(executor)
-    assert not between.spinning and changes == [(True, 0.6), (False, 0.6)] and executor.waits[-1] == WAIT
-
-
-def test_auto_spins_as_before_where_the_idle_cores_cannot_be_read(auto, machine):
-    between, timer, executor, clock, changes = auto
-    machine.idle = None
-    timer.ran_for(RECENT, share=0.6)
-    between.step(executor)
-    assert between.spinning
-
-
-def _proc_stat(path, *, idle: int, busy: int, cores: int = 2) -> None:
-    """A ``/proc/stat`` whose ``cpu`` line counts ``idle`` ticks idle, 10 waiting for I/O, ``busy``
-    in user time (and guest time, already within user time), and one ``cpuN`` line per core."""
-    per_core = ''.join(f'cpu{k} 0 0 0 0 0 0 0 0 0 0\n' for k in range(cores))
-    path.write_text(f'cpu  {busy} 0 0 {idle} 10 0 0 0 {busy} 0\n{per_core}intr 1 2 3\nctxt 4\n')
-
-
-def test_idle_cores_are_the_idle_share_of_the_time_counted_since_the_last_look_times_the_cores(tmp_path):
-    stat = tmp_path / 'stat'
-    _proc_stat(stat, idle=1000, busy=1000)
-    idle_cores = IdleCores(str(stat))
-    _proc_stat(stat, idle=1150, busy=1250)  # 150 idle of 400 ticks, on 2 cores
-    assert idle_cores() == pytest.approx(0.75)
-    _proc_stat(stat, idle=1550, busy=1250)  # then all 400 idle
-    assert idle_cores() == pytest.approx(2.0)
-    _proc_stat(stat, idle=1550, busy=1250)  # no time counted since
-    assert idle_cores() is None
-    assert IdleCores(str(tmp_path / 'none'))() is None
+    assert not between.spinning and executor.waits[-1] == WAIT
 
 
 def test_spinning_runs_due_ticks_at_once_and_serves_the_executor_only_far_from_the_next_tick():

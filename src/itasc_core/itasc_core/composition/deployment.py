@@ -184,6 +184,11 @@ class Runtime:
     def process(self, namespace: str) -> subprocess.Popen | ForkedProcess | RemoteProcess | None:
         return self._processes.get(namespace)
 
+    @property
+    def local_processes(self) -> int:
+        """How many composite processes this process started on this machine (not through a host's agent)."""
+        return sum(not isinstance(process, RemoteProcess) for process in self._processes.values())
+
     def join(self, namespace: str, *, timeout: float = 10.0, orderly: bool = True) -> int | None:
         """Wait for a composite process to end (it ends by itself after NotifyStopped); past
         ``timeout``, or at once if not ``orderly``, kill it (it ignores SIGINT and SIGTERM, see
