@@ -1,5 +1,6 @@
 """Faults at run time, measured (issue #8): a composite process killed with SIGKILL is detected by
-its parent within 100 ms and the robot is held; a driver that says nothing for longer than its
+its parent within 100 ms and the robot is held; a Task process stalled for longer than the Solver's
+``remote_rows_age`` holds the robot still until it runs again; a driver that says nothing for longer than its
 Driver's ``silent_after`` puts the application in Safety, and not before; an event storm across one composite (10,000
 events/s for 10 s by default, ``ITASC_STORM_RATE`` to change it) loses nothing, keeps each source's
 order and grows the bootstrap's memory by a bounded amount (test/support/storm.py).
@@ -65,6 +66,35 @@ def test_a_killed_composite_process_is_detected_within_100_ms_and_the_robot_held
     held = [m for m in run['/approach_object/Driver_panda/joint_state'] if safety + 0.05 < m._sent < stopping]
     assert len(held) > 50 and all(not np.any(m.velocity) for m in held)
     assert all(np.array_equal(m.position, held[0].position) for m in held)
+
+
+def test_a_stalled_task_process_holds_the_robot_still_until_its_rows_come_again(tmp_path):
+    """AvoidObstacle's process stopped for 0.6 s (SIGSTOP, as a process starved of CPU is): its rows
+    get older than the Solver's ``remote_rows_age`` (0.1 s) and the robot holds still, instead of
+    approaching the object without the obstacle's distance in the problem (before: a joint commanded
+    at 0.35-0.41 rad/s for ApproachObject alone); once the process runs again, so does the robot."""
+    mcap = tmp_path / 'run.mcap'
+    task = '/approach_object/itasc/AvoidObstacle'
+    with Spawned([*BOOTSTRAP, 'approach_object', '--deploy', 'per-composite', '--record', str(mcap)]) as app:
+        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
+        time.sleep(1.0)  # the robot is moving
+        hosts = [pid for pid, line in started_here(command='itasc_core.composition.host').items()
+                 if f'--namespace {task} ' in line]
+        assert len(hosts) == 1, hosts
+        stopped_at = time.time()
+        os.kill(hosts[0], signal.SIGSTOP)
+        time.sleep(0.6)
+        os.kill(hosts[0], signal.SIGCONT)
+        time.sleep(1.5)
+        os.killpg(app.process.pid, signal.SIGINT)
+        assert app.finish(timeout=60) == 0, app.output()
+    commands = [(m._sent - stopped_at, np.abs(m.velocity).max())
+                for m in read_recording(mcap)['/approach_object/itasc/Solver/command']]
+    assert max(v for t, v in commands if -0.5 < t < 0) > 1e-3  # moving before
+    stalled = [v for t, v in commands if 0.25 < t < 0.55]
+    assert len(stalled) > 10 and max(stalled) == 0.0, stalled
+    assert max(v for t, v in commands if 0.6 < t < 2.0) > 1e-3  # moving again
+    assert 'the rows of AvoidObstacle are older than remote_rows_age (0.1 s): the robot holds still' in app.output()
 
 
 def test_a_run_shorter_than_the_drivers_grace_names_the_driver_that_never_reported(tmp_path):

@@ -428,6 +428,40 @@ def test_the_solver_never_combines_rows_of_two_configurations_from_other_process
     assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.7, 0.6], abs=1e-4)
 
 
+def test_the_solver_holds_still_while_the_rows_of_a_task_in_another_process_are_too_old(world, capfd):
+    """A Task in another process whose rows stop coming (its process stalled, or died) stays in the
+    problem: once its newest rows are older than ``remote_rows_age`` the Solver holds still until they
+    come again. Before, the Task dropped out and the Solver moved the robot for the other Tasks
+    alone: a stalled obstacle-avoidance Task's distance vanished from the problem. A Task that left
+    the problem (rows of none) stays out, however long it is silent."""
+    solver = _solver(world, kind='qp')
+    port = solver.inputs['rows']
+    a, b = '/elsewhere/A/Rows/rows', '/elsewhere/B/Rows/rows'
+    port.connect(a)
+    port.connect(b)
+    port.deliver(as_sample(_joint_rows('A', 1.0, 0, 0.1)), a)
+    port.deliver(as_sample(_joint_rows('B', 1.0, 1, 0.2)), b)
+    solver.update(1.01)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.1, 0.2], abs=1e-4)
+    for k in range(2, 12):  # A computes every tick, B's process stalls: its rows of 1.0 are too old at 1.11
+        port.deliver(as_sample(_joint_rows('A', 1.0 + (k - 1) * DT, 0, 0.3)), a)
+        solver.update(1.0 + k * DT)
+    assert solver.outputs['command'].last.velocity == pytest.approx([0.0] * 7, abs=1e-9)
+    assert list(solver.outputs['status'].last.active_tasks) == []
+    assert 'the rows of B are older than remote_rows_age (0.1 s): the robot holds still' in capfd.readouterr().err
+    port.deliver(as_sample(_joint_rows('B', 1.1, 1, 0.4)), b)  # B's process computes again
+    solver.update(1.12)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.3, 0.4], abs=1e-4)
+    none = ConstraintRows(task='B', rows=0, joint_names=list(PANDA))  # B's Coordinator switched it off
+    none.stamp = stamp(1.12)
+    port.deliver(as_sample(none), b)
+    for k in range(13, 40):  # and B says nothing more: A alone
+        port.deliver(as_sample(_joint_rows('A', 1.0 + (k - 1) * DT, 0, 0.5)), a)
+        solver.update(1.0 + k * DT)
+    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.5, 0.0], abs=1e-4)
+    assert list(solver.outputs['status'].last.active_tasks) == ['A']
+
+
 def test_a_tasks_rows_are_stamped_with_the_configuration_they_describe(world):
     """A Task in another process computes its tick with the newest relation the Scene's process
     sent, which may be of an earlier tick: its features, output, rows and state carry the stamp of

@@ -14,8 +14,12 @@ leaves no redundancy for was met by a joint velocity hundreds of times the task'
 joint's velocity limit, the next back, now and then in a per-composite run). With no configuration
 in common, it solves again with the rows it last combined while those count, and with none after
 (and says so in its log).
-A Task the Coordinator deactivated writes rows of none and drops out at once; one that stops
-computing drops out when its rows get too old. It solves the prioritised problem with the
+A Task the Coordinator deactivated writes rows of none and drops out at once. A Task in another
+process whose rows stop coming (its process stalled, or died) does not drop out: once its newest
+rows are older than ``remote_rows_age`` the Solver holds still until they come again (and says so
+in its log), since a problem without them is not the program's: the constraint that vanished
+might be an obstacle's distance. A dead process's composite is noticed by its parent, which goes to
+Safety (paper §6). It solves the prioritised problem with the
 configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
 squares with null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers)
 within the joint position and velocity limits, and writes
@@ -93,7 +97,8 @@ class SolverEntity(FunctionalEntity):
         period: float = Field(default=0.01, gt=0)
         """The nominal tick period [s], used until two ticks were seen."""
         remote_rows_age: float = Field(default=0.1, gt=0)
-        """How old the rows of a Task in another process may be and still count [s]."""
+        """How old the rows of a Task in another process may be and still count [s]; older, the robot holds
+        still until they come again."""
 
         @model_validator(mode='after')
         def _per_joint(self) -> 'SolverEntity.Parameters':
@@ -139,6 +144,8 @@ class SolverEntity(FunctionalEntity):
         self._configurations: dict[str, dict[float, RowsSample]] = {}
         #: the stamp of the rows last combined, and those rows by topic
         self._combined: tuple[float, dict[str, RowsSample]] = (-math.inf, {})
+        #: the Tasks in other processes whose rows were too old at the last tick (the robot held still)
+        self._late: list[str] = []
         self._last_t: float | None = None
         self._dt = self.period
         self.status = 'ok'
@@ -187,8 +194,19 @@ class SolverEntity(FunctionalEntity):
         fresh, remote_fresh = t - 1.5 * self._dt, t - self.remote_rows_age
         counting = {topic: sample for topic, sample in port.samples.items()
                     if sample.t >= (remote_fresh if topic in port.remote else fresh) and not port.switched_off(topic)}
-        samples = self._one_configuration(counting, oldest=remote_fresh) if port.remote else counting.values()
-        return [self._problem_rows(sample) for sample in samples if sample.rows]
+        if not port.remote:
+            return [self._problem_rows(sample) for sample in counting.values() if sample.rows]
+        late = [sample.task for topic, sample in port.samples.items()
+                if sample.rows and topic in port.remote and topic not in counting and not port.switched_off(topic)]
+        if late != self._late and late:
+            self.get_logger().warning(f'the rows of {", ".join(sorted(late))} are older than remote_rows_age '
+                                      f'({self.remote_rows_age:g} s): the robot holds still until they come')
+        self._late = late
+        if late:
+            self._combined = -math.inf, {}
+            return []
+        return [self._problem_rows(sample) for sample in self._one_configuration(counting, oldest=remote_fresh)
+                if sample.rows]
 
     def _one_configuration(self, counting: dict[str, RowsSample], *, oldest: float) -> list[RowsSample]:
         """Of the Tasks that contribute rows (``counting``: topic -> its newest rows), the rows of the
