@@ -39,17 +39,23 @@ def seconds(stamp) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
+def _moving_per_composite(app: Spawned, task: str) -> int:
+    """Once ``approach_object`` (a process per composite) runs and its robot moves: the pid of the
+    process of composite ``task``."""
+    app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
+    time.sleep(1.0)  # the robot is moving
+    hosts = [pid for pid, line in started_here(command='itasc_core.composition.host').items()
+             if f'--namespace /approach_object/itasc/{task} ' in line]
+    assert len(hosts) == 1, hosts
+    return hosts[0]
+
+
 def test_a_killed_composite_process_is_detected_within_100_ms_and_the_robot_held(tmp_path):
     mcap = tmp_path / 'run.mcap'
-    task = '/approach_object/itasc/ApproachObject'
     with Spawned([*BOOTSTRAP, 'approach_object', '--deploy', 'per-composite', '--record', str(mcap)]) as app:
-        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
-        time.sleep(1.0)  # the robot is moving
-        hosts = [pid for pid, line in started_here(command='itasc_core.composition.host').items()
-                 if f'--namespace {task} ' in line]
-        assert len(hosts) == 1, hosts
+        host = _moving_per_composite(app, 'ApproachObject')
         killed_at = time.time()
-        os.kill(hosts[0], signal.SIGKILL)
+        os.kill(host, signal.SIGKILL)
         app.wait_for_line('SAFETY:', timeout=10)
         time.sleep(1.0)  # a second of Safety
         os.killpg(app.process.pid, signal.SIGINT)
@@ -74,17 +80,12 @@ def test_a_stalled_task_process_holds_the_robot_still_until_its_rows_come_again(
     approaching the object without the obstacle's distance in the problem (before: a joint commanded
     at 0.35-0.41 rad/s for ApproachObject alone); once the process runs again, so does the robot."""
     mcap = tmp_path / 'run.mcap'
-    task = '/approach_object/itasc/AvoidObstacle'
     with Spawned([*BOOTSTRAP, 'approach_object', '--deploy', 'per-composite', '--record', str(mcap)]) as app:
-        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
-        time.sleep(1.0)  # the robot is moving
-        hosts = [pid for pid, line in started_here(command='itasc_core.composition.host').items()
-                 if f'--namespace {task} ' in line]
-        assert len(hosts) == 1, hosts
+        host = _moving_per_composite(app, 'AvoidObstacle')
         stopped_at = time.time()
-        os.kill(hosts[0], signal.SIGSTOP)
+        os.kill(host, signal.SIGSTOP)
         time.sleep(0.6)
-        os.kill(hosts[0], signal.SIGCONT)
+        os.kill(host, signal.SIGCONT)
         time.sleep(1.5)
         os.killpg(app.process.pid, signal.SIGINT)
         assert app.finish(timeout=60) == 0, app.output()

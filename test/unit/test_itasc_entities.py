@@ -391,14 +391,10 @@ def _joint_rows(task: str, t: float, joint: int, desired: float) -> ConstraintRo
     return msg
 
 
-def test_the_solver_never_combines_rows_of_two_configurations_from_other_processes(world, capfd):
-    """Tasks in other processes: each one's rows come over DDS, each at its own lag. Rows describe
-    the configuration they were computed at (their stamp): the Solver combines the rows of the newest
-    configuration every contributing Task has rows of. Before, with no such configuration within
-    ``remote_rows_age``, it took the newest of each: rows of two configurations, in which one Task's
-    row is no longer quite in the row space of another's, and a joint was commanded at its velocity
-    limit for a tick (test_applications.py, per composite). Now it solves again with the rows it
-    last combined while they count, then holds still."""
+def _two_tasks_elsewhere(world):
+    """A QP Solver with Tasks A and B in other processes, A's rows moving joint 1 at 0.1, B's joint
+    2 at 0.2, both of the configuration of 1.0, solved at 1.01; the Solver, its rows input and A's
+    and B's topics."""
     solver = _solver(world, kind='qp')
     port = solver.inputs['rows']
     a, b = '/elsewhere/A/Rows/rows', '/elsewhere/B/Rows/rows'
@@ -408,6 +404,18 @@ def test_the_solver_never_combines_rows_of_two_configurations_from_other_process
     port.deliver(as_sample(_joint_rows('B', 1.0, 1, 0.2)), b)
     solver.update(1.01)
     assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.1, 0.2], abs=1e-4)
+    return solver, port, a, b
+
+
+def test_the_solver_never_combines_rows_of_two_configurations_from_other_processes(world, capfd):
+    """Tasks in other processes: each one's rows come over DDS, each at its own lag. Rows describe
+    the configuration they were computed at (their stamp): the Solver combines the rows of the newest
+    configuration every contributing Task has rows of. Before, with no such configuration within
+    ``remote_rows_age``, it took the newest of each: rows of two configurations, in which one Task's
+    row is no longer quite in the row space of another's, and a joint was commanded at its velocity
+    limit for a tick (test_applications.py, per composite). Now it solves again with the rows it
+    last combined while they count, then holds still."""
+    solver, port, a, b = _two_tasks_elsewhere(world)
     port.deliver(as_sample(_joint_rows('A', 1.02, 0, 0.3)), a)  # A's process is a tick ahead of B's
     solver.update(1.03)
     assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.1, 0.2], abs=1e-4)
@@ -434,15 +442,7 @@ def test_the_solver_holds_still_while_the_rows_of_a_task_in_another_process_are_
     come again. Before, the Task dropped out and the Solver moved the robot for the other Tasks
     alone: a stalled obstacle-avoidance Task's distance vanished from the problem. A Task that left
     the problem (rows of none) stays out, however long it is silent."""
-    solver = _solver(world, kind='qp')
-    port = solver.inputs['rows']
-    a, b = '/elsewhere/A/Rows/rows', '/elsewhere/B/Rows/rows'
-    port.connect(a)
-    port.connect(b)
-    port.deliver(as_sample(_joint_rows('A', 1.0, 0, 0.1)), a)
-    port.deliver(as_sample(_joint_rows('B', 1.0, 1, 0.2)), b)
-    solver.update(1.01)
-    assert solver.outputs['command'].last.velocity[:2] == pytest.approx([0.1, 0.2], abs=1e-4)
+    solver, port, a, b = _two_tasks_elsewhere(world)
     for k in range(2, 12):  # A computes every tick, B's process stalls: its rows of 1.0 are too old at 1.11
         port.deliver(as_sample(_joint_rows('A', 1.0 + (k - 1) * DT, 0, 0.3)), a)
         solver.update(1.0 + k * DT)
