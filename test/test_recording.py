@@ -408,6 +408,60 @@ def test_a_local_output_is_recorded_every_sample_without_a_dds_reader(context, t
     assert (recorded[7].stamp.sec, recorded[7].stamp.nanosec, recorded[7].rotation) == (0, 7_000_000, -1)
 
 
+def test_an_output_that_the_deployment_puts_here_is_tapped_when_it_appears_and_never_read_over_dds(context, tmp_path):
+    """The recorder starts before the hierarchy is deployed. A topic that the deployment puts in
+    another process is read over DDS from the start; one whose output will be in this process
+    (``elsewhere`` says no) gets no reader: a reader made for it would be destroyed when the output
+    appears, but only once the executor reaches its entity update, and each output with such a
+    reader publishes every tick meanwhile (``--between-ticks spin --record`` at 1 kHz: never reached,
+    277-304 Hz)."""
+    import numpy as np
+
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.ports import OutputPort, PortSpec
+    from itasc_core.itasc.entities.messages import FeaturesSample
+    from itasc_msgs.msg import Features
+
+    path = tmp_path / 'bag'
+    recorder = Recorder(path, prefix='/app', context=context, elsewhere=lambda topic: topic.startswith('/app/far/'))
+    node = rclpy.create_node('scene', context=context)
+    try:
+        recorder.record('/app/relation', 'itasc_msgs/msg/Features', qos=QoSProfile(depth=10))
+        recorder.record('/app/far/relation', 'itasc_msgs/msg/Features', qos=QoSProfile(depth=10))
+        readers = {topic: [i.node_name for i in recorder.get_subscriptions_info_by_topic(topic)]
+                   for topic in ('/app/relation', '/app/far/relation')}
+        assert readers == {'/app/relation': [], '/app/far/relation': ['recorder']}
+        port = OutputPort(node, PortSpec(name='relation', direction='output', msg_type=Features, id='/app/relation'))
+        for k in range(20):
+            port.write(FeaturesSample(k * 0.001, ('distance',), ('j1',), np.array([0.1 * k]), np.array([[1.0]])))
+            recorder.drain()
+        assert port._dds.publisher.get_subscription_count() == 0
+    finally:
+        recorder.destroy_node()
+        node.destroy_node()
+    _, messages = _read_all(path)
+    assert [m.value.tolist() for t, _, m in messages if t == '/app/relation'] == [[0.1 * k] for k in range(20)]
+
+
+def test_a_spinning_recorded_run_sends_its_own_data_flow_over_no_dds(tmp_path):
+    """``--deploy single --record --between-ticks spin`` at 1 kHz: no output of the application
+    has a DDS reader (before: the recorder's and the console's readers made before the bring-up
+    stayed, every output published every tick, the run went at 277-304 Hz)."""
+    from ros_client import ros_node
+
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--rate', '1000',
+                  '--between-ticks', 'spin', '--record', str(tmp_path / 'run.mcap')]) as app:
+        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
+        with ros_node('observer') as (node, _):
+            time.sleep(2.0)  # the readers made before the bring-up had long been destroyed
+            readers = {topic: node.count_subscribers(topic) for topic in (
+                '/approach_object/itasc/Solver/status', '/approach_object/itasc/Solver/command',
+                '/approach_object/itasc/ApproachObject/Rows/state', '/approach_object/itasc/Scene/joint_state')}
+        os.killpg(app.process.pid, signal.SIGINT)
+        assert app.finish(timeout=60) == 0, app.output()
+    assert readers == dict.fromkeys(readers, 0)
+
+
 def test_a_recording_without_the_robots_transforms_is_named_at_the_end(context, tmp_path):
     """Before closing a recording the bootstrap waits for the 3-D scene (markers, ``/tf_static``,
     ``/tf``: ``itasc-plot`` draws it from all three) and warns about what is missing. A recording

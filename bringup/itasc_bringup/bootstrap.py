@@ -182,6 +182,16 @@ def main(argv: list[str] | None = None) -> int:
     runtime = Runtime(executor=executor, mode=args.deploy, namespace=root.namespace, background=True, zygote=zygote)
     node = rclpy.create_node('bootstrap', namespace=root.namespace)
     executor.add_node(node)
+    # the data flow that the console and the recorder tap once its outputs exist here: that of the
+    # composites this process runs; any other topic they read over DDS from the start (see .observe)
+    from .recording.topics import data_flow_topics
+    remote = tuple(f'{path}/' for path, composite in walk(model)
+                   if composite is not model and runtime.separate(composite))
+    tapped_here = {topic for topic in data_flow_topics(model, namespace=root.namespace)
+                   if not topic.startswith(remote)}
+
+    def elsewhere(topic: str) -> bool:
+        return topic not in tapped_here
     recorder = None
     composer = None
     console = None
@@ -194,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
             from .recording.bag import APPLICATION_KEY, DEPLOY_KEY, CannotRecord, mcap_path_of
             from .recording.recorder import Recorder
             try:  # the model file goes into the bag: itasc-replay finds it there
-                recorder = Recorder(path=args.record, prefix=root.namespace,
+                recorder = Recorder(path=args.record, prefix=root.namespace, elsewhere=elsewhere,
                                     custom_data={APPLICATION_KEY: str(resolve_app(args.app).resolve()),
                                                  DEPLOY_KEY: args.deploy})
             except CannotRecord as err:
@@ -237,10 +247,10 @@ def main(argv: list[str] | None = None) -> int:
             console.on_transition(transition)
             waits.on_transition(transition)
 
-        from .recording.topics import data_flow_topics
         solver_topics = [t for t, kind in data_flow_topics(model, namespace=root.namespace).items()
                          if kind == 'itasc_msgs/msg/SolverStatus']
-        watch = Watch(node, facts=facts, solver_topics=solver_topics, on_transition=on_transition)
+        watch = Watch(node, facts=facts, solver_topics=solver_topics, on_transition=on_transition,
+                      elsewhere=elsewhere)
 
         raiser = EventRaiser(node, topic=root.events_topic)
         composer = bring_up(model=model, context=root, runtime=runtime)

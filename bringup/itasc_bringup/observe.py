@@ -8,7 +8,15 @@ in this process (:meth:`~itasc_core.communication.ports.OutputPort.tap`: the sam
 handed over in the tick, nothing else happens there), and read the topic over DDS only when its
 publisher lives in another process (``--deploy per-composite``, another host). A DDS reader made
 before the port existed (tools start before the hierarchy is deployed, so that they miss no tick
-of a composite that turns out to be remote) is replaced by a tap as soon as the port appears here.
+of a composite in another process) is replaced by a tap as soon as the port appears here.
+
+Such a reader is made only for a topic that the deployment puts in another process (``elsewhere``,
+from the Runtime's plan): one made for a topic whose output turns up here is destroyed when it is
+tapped, but rclpy's EventsExecutor lets it go only when it reaches its entity update, queued behind
+the events already waiting; meanwhile every output with such a reader publishes it every tick. With
+``--deploy single --record --between-ticks spin`` at 1 kHz (a thread that serves the executor an event
+every 2 ms) the ~30 outputs' samples kept that update from ever being reached: the readers stayed, the
+bootstrap's DDS receiving thread took 71 % of a core, and the run went at 277-304 Hz.
 """
 
 from __future__ import annotations
@@ -28,11 +36,14 @@ Callback = Callable[[str, Any], None]
 
 class Observer:
     """Hands every sample of the observed local outputs to their callback, ``callback(topic,
-    sample)``, from a tap in the tick; a topic whose output is not (yet) in this process is read by
-    the DDS reader its ``subscribe()`` makes, replaced by the tap when the output appears here."""
+    sample)``, from a tap in the tick; a topic whose output is not (yet) in this process and that
+    ``elsewhere(topic)`` says lives in another one is read by the DDS reader its ``subscribe()``
+    makes, replaced by the tap should the output appear here (``elsewhere``: every topic, unless
+    told)."""
 
-    def __init__(self, node: Node) -> None:
+    def __init__(self, node: Node, *, elsewhere: Callable[[str], bool] = lambda topic: True) -> None:
         self._node = node
+        self._elsewhere = elsewhere
         self._wanted: dict[str, Callback] = {}
         self._tapped: dict[str, OutputPort] = {}
         self._readers: dict[str, Any] = {}
@@ -43,12 +54,13 @@ class Observer:
 
     def observe(self, topic: str, callback: Callback, *, subscribe: Callable[[], Any]) -> None:
         """From now on, every sample of ``topic`` to ``callback`` (tapped), or, while its output
-        is not in this process, whatever the subscription ``subscribe()`` makes receives."""
+        is not in this process, whatever the subscription ``subscribe()`` makes receives, if it
+        lives ``elsewhere``."""
         self._wanted[topic] = callback
         port = self._bus.lookup(topic)
         if port is not None:
             self._tap(port)
-        else:
+        elif self._elsewhere(topic):
             self._readers[topic] = subscribe()
 
     def samples(self, topic: str, msg_type: type, callback: Callback, *, qos: QoSProfile) -> None:

@@ -34,12 +34,14 @@ class Watch:
     """Subscribes ``node`` to what ``facts`` needs; calls ``on_transition`` for every state change."""
 
     def __init__(self, node: Node, *, facts: RunFacts, solver_topics: list[str],
-                 on_transition: Callable[[Transition], None]) -> None:
+                 on_transition: Callable[[Transition], None],
+                 elsewhere: Callable[[str], bool] = lambda topic: True) -> None:
+        """``elsewhere``: see :class:`..observe.Observer`."""
         self.facts = facts
         self._on_transition = on_transition
         for namespace in facts.composites.values():
             node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
-        self.observer = Observer(node)
+        self.observer = Observer(node, elsewhere=elsewhere)
         # A tapped sample arrives in the tick that wrote it: it is only kept there, and goes into
         # the facts at the next poll, between ticks (issue #9: ~3 % of a 1 kHz tick otherwise).
         pending: deque[tuple[str | None, str, Any]] = deque()  # (Task, topic, TaskState) or (None, topic, SolverStatus)

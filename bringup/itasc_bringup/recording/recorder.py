@@ -102,9 +102,12 @@ class Recorder(Node):
                  context: Context | None = None, node_name: str = 'recorder',
                  scan_period: float = 0.2, depth: int = 1000, compression: str = 'zstd',
                  flush_period: float = 1.0, exclude: Iterable[str] = (),
-                 custom_data: Mapping[str, str] | None = None) -> None:
+                 custom_data: Mapping[str, str] | None = None,
+                 elsewhere: Callable[[str], bool] = lambda topic: True) -> None:
         """``custom_data``: kept in the bag's metadata (``custom_data``, as ``ros2 bag record
-        --custom-data`` keeps it)."""
+        --custom-data`` keeps it); ``elsewhere(topic)``: whether a topic whose output is not in this
+        process yet lives in another one (read over DDS from the start) or is to be tapped once its
+        output appears here (:class:`..observe.Observer`)."""
         # the bag first: a path that cannot take a bag fails before any node exists
         self._bag = BagProcess(path, compression=compression, library='itasc_bringup.recording (mcap python)',
                                custom_data=custom_data)
@@ -139,7 +142,7 @@ class Recorder(Node):
         self._closed = False
         self._last_flush = time.monotonic()
         self._flush_period = flush_period
-        self._observer = Observer(self)
+        self._observer = Observer(self, elsewhere=elsewhere)
         #: tapped samples not written yet: (topic, channel, tapped at [ns], sample)
         self._pending: list[tuple[str, int, int, Any]] = []
 
