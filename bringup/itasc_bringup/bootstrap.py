@@ -187,8 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     from .recording.topics import data_flow_topics
     remote = tuple(f'{path}/' for path, composite in walk(model)
                    if composite is not model and runtime.separate(composite))
-    tapped_here = {topic for topic in data_flow_topics(model, namespace=root.namespace)
-                   if not topic.startswith(remote)}
+    data_flow = data_flow_topics(model, namespace=root.namespace)
+    tapped_here = {topic for topic in data_flow if not topic.startswith(remote)}
 
     def elsewhere(topic: str) -> bool:
         return topic not in tapped_here
@@ -247,8 +247,7 @@ def main(argv: list[str] | None = None) -> int:
             console.on_transition(transition)
             waits.on_transition(transition)
 
-        solver_topics = [t for t, kind in data_flow_topics(model, namespace=root.namespace).items()
-                         if kind == 'itasc_msgs/msg/SolverStatus']
+        solver_topics = [t for t, kind in data_flow.items() if kind == 'itasc_msgs/msg/SolverStatus']
         watch = Watch(node, facts=facts, solver_topics=solver_topics, on_transition=on_transition,
                       elsewhere=elsewhere)
 
