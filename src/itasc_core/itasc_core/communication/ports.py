@@ -29,6 +29,7 @@ from __future__ import annotations
 import threading
 import time
 import weakref
+from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterator
@@ -50,6 +51,11 @@ __all__ = [
     'SemanticMismatch',
     'check_connection',
 ]
+
+
+#: How many samples of one source a ``multiple`` input keeps until its entity takes them
+#: (:meth:`InputPort.take_arrived`).
+ARRIVED = 64
 
 
 @dataclass(frozen=True)
@@ -422,6 +428,8 @@ class InputPort:
         self.latest: Any = None
         #: For ``multiple`` inputs: the newest sample of every source topic.
         self.samples: dict[str, Any] = {}
+        #: For ``multiple`` inputs: what came from each source in another process since the entity took it.
+        self._arrived: dict[str, deque[Any]] = {}
         self.received = 0
         #: When the newest sample arrived (``time.monotonic()``), None before the first.
         self.received_at: float | None = None
@@ -460,6 +468,7 @@ class InputPort:
         self.sources.remove(topic)
         self.remote.discard(topic)
         self.samples.pop(topic, None)
+        self._arrived.pop(topic, None)
         for output in [o for o in self._links if o.topic == topic]:
             output.unlink(self)
             self._links.remove(output)
@@ -482,8 +491,21 @@ class InputPort:
         self.received_at = time.monotonic() if now is None else now
         if self._multiple:
             self.samples[topic] = msg
+            if topic in self.remote:
+                self._arrived.setdefault(topic, deque(maxlen=ARRIVED)).append(msg)
         if self._on_sample is not None:
             self._on_sample(msg)
+
+    def take_arrived(self, topic: str) -> list[Any]:
+        """For a ``multiple`` input: the samples from ``topic`` (read over DDS) that came since the
+        last call, oldest first (at most the newest ``ARRIVED``). Two can come between two ticks of a
+        process that was busy, and :attr:`samples` holds only the newer."""
+        arrived = self._arrived.get(topic)
+        if not arrived:
+            return []
+        taken = list(arrived)
+        arrived.clear()
+        return taken
 
     def disconnect(self) -> None:
         for output in self._links:
@@ -495,3 +517,4 @@ class InputPort:
         self.sources.clear()
         self.remote.clear()
         self.samples.clear()
+        self._arrived.clear()

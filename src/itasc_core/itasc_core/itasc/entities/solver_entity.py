@@ -8,7 +8,8 @@ most ``remote_rows_age`` old, unless this process switched its composite off. Ro
 the Scene tick whose configuration they describe, and rows from other processes arrive one by one,
 each Task's at its own lag: the Solver then combines, of all contributing Tasks (in this process
 too), the rows of the newest configuration each has rows of (it keeps each one's rows for
-``remote_rows_age``), never the newest of each. Rows of two configurations are no longer quite in
+``remote_rows_age``, all that came between two of its ticks, :meth:`.InputPort.take_arrived`),
+never the newest of each. Rows of two configurations are no longer quite in
 each other's row space: a higher-priority inequality (an obstacle distance) that the configuration
 leaves no redundancy for was met by a joint velocity hundreds of times the task's (a tick at a
 joint's velocity limit, the next back, now and then in a per-composite run). With no configuration
@@ -216,9 +217,13 @@ class SolverEntity(FunctionalEntity):
         for topic in [topic for topic in history if topic not in counting or not counting[topic].rows]:
             del history[topic]  # gone, switched off, stale or writing rows of none
         contributing = [topic for topic, sample in counting.items() if sample.rows]
+        port = self.inputs['rows']
+        arrived = {topic: port.take_arrived(topic) for topic in port.remote}
         for topic in contributing:
             stamps = history.setdefault(topic, {})
-            stamps[counting[topic].t] = counting[topic]
+            for sample in (*arrived.get(topic, ()), counting[topic]):  # all that came since the last tick
+                if sample.rows and sample.t >= oldest and sample.t > next(reversed(stamps), -math.inf):
+                    stamps[sample.t] = sample
             while len(stamps) > 1 and next(iter(stamps)) < oldest:  # kept while they count (one process may lag)
                 del stamps[next(iter(stamps))]
         first, *others = [history[topic] for topic in contributing] or [{}]
