@@ -129,6 +129,17 @@ def test_an_event_storm_loses_nothing_keeps_order_and_memory_bounded(tmp_path):
     assert figures.send_seconds < 10.0 * 1.2, f'the storm could not be raised at {rate}/s: {figures.summary()}'
 
 
+def test_a_spinning_bootstrap_whose_ticks_fill_the_period_still_takes_in_its_drivers_joint_states():
+    """Ticks that never leave time before the next one (asked for at 5 kHz) with ``--between-ticks
+    spin``: the thread still serves the executor every 2 ms, so the joint states of a driver in
+    another process come in and the robot moves. The loop used to run due ticks back to back and
+    serve nothing: the Driver was taken for silent (Safety) at 0.25 s, at 1 kHz too on a loaded machine."""
+    with Spawned(FAKE_ROS2_CONTROL), Spawned([*BOOTSTRAP, 'approach_object_ros_driver', '--rate', '5000',
+                                               '--between-ticks', 'spin', '--duration', '4']) as run:
+        assert run.finish(timeout=120) == 0, run.output()
+    assert 'SAFETY' not in run.out and 'Running.approach_accurately' in run.out, run.output()
+
+
 @pytest.mark.parametrize('silent_after', [None, 3.0])
 def test_a_paused_driver_puts_the_application_in_safety_after_the_drivers_silent_after(tmp_path, silent_after):
     """``silent_after`` of a Driver (default 20 periods, at least 0.25 s) is how long its driver may

@@ -7,9 +7,14 @@ ticks of ``approach_object``, called in a loop in one process on the 2-core KVM 
 435 us back to back, 470 us with a busy wait of 0.4 ms between them and 591-633 us with a sleep or
 an executor wait there (ten alternating rounds of 800 ticks). A sleep halts the vCPU, and the tick
 after it runs on cold caches and branch predictors. rclpy's ``spin_once(timeout_sec=0)`` sleeps
-too (~60 us a call, the kernel's timer slack), so a spinning thread serves the executor only while
-the next tick is more than :data:`SERVE_BEFORE` away, at least every :data:`SERVE_AT_LEAST`
-(its services and the other processes' events must not wait for long). The whole application at
+too when nothing is waiting, for the thread's timer slack (the kernel's 50 us: ~70 us a call, a
+voluntary context switch every time); a spinning thread sets its slack to 1 ns, and the call
+returns after ~16 us without sleeping. It serves the executor whenever the next tick is more than
+:data:`SERVE_BEFORE` away (one callback's time), and every :data:`SERVE_AT_LEAST` in any case,
+before a due tick too: ticks that fill the period (a loaded machine) are run back to back, and a
+loop that ran them first served nothing while they were behind; the joint states of a driver in
+another process then went untaken until its Driver was taken for silent (Safety;
+``approach_object_ros_driver`` at 1 kHz with ``--between-ticks spin``, two runs of two). The whole application at
 1 kHz, ``--deploy single``, two alternating pairs of 20 s runs (``bench/bench_app.py --json
 --between-ticks wait|auto``): tick p50 758/811 -> 531/648 us, p99 1141/1198 -> 1026/1053 us,
 991/981 -> 998/998 Hz, 187/379 -> 46/39 ticks dropped.
@@ -40,8 +45,10 @@ spinning through its first seconds, 971-994 Hz against 995-998 Hz in four pairs.
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import statistics
+import sys
 import time
 from typing import Any, Callable
 
@@ -59,13 +66,12 @@ WAIT_BELOW = 0.2
 MAX_SLOWDOWN = 2.0
 #: How long the executor waits for an event while the thread does not spin [s].
 WAIT = 0.02
-#: Spinning, the executor is served only while the next tick is further away than this [s] (its
-#: sleep 0.3 ms before a tick still cost: 1 kHz, two pairs, tick p50 679/557 -> 555/486 us and p99
-#: 1073/995 -> 996/907 us with 0.6 ms) ...
-SERVE_BEFORE = 0.0006
-#: ... and then at most this often [s], but at least this often in any case [s].
-SERVE_PERIOD = 0.0002
+#: Spinning, the executor is served while the next tick is further away than this [s] ...
+SERVE_BEFORE = 0.00015
+#: ... and at least this often in any case [s].
 SERVE_AT_LEAST = 0.002
+#: The timer slack of a spinning thread [ns] (``prctl(PR_SET_TIMERSLACK)``).
+SPINNING_SLACK = 1
 #: The share is the median of the newest ``RECENT // 2`` ticks, once ``RECENT`` ran (the first
 #: ticks of a run are slow), and of at least ``RECENT // 4`` when only those since a moment count;
 #: ``auto`` looks at it every ``DECIDE_PERIOD`` seconds.
@@ -97,22 +103,28 @@ class BetweenTicks:
         self._spun_at = -float('inf')
         self._waiting_share = 0.0
         self._slowdown: float | None = None
+        #: Spinning: the timer slack the thread had before [ns].
+        self._slack: int | None = None
 
     def step(self, executor) -> None:
         """One turn of the thread: the executor's next event (waiting for it at most
         :data:`WAIT`), or, spinning, the due ticks, the executor served, or nothing."""
         timer = self._timer()
         if timer is None or not self._spin():
+            if self._slack is not None:
+                _timer_slack(self._slack)
+                self._slack = None
             executor.spin_once(timeout_sec=WAIT)
             return
+        if self._slack is None:
+            self._slack = _timer_slack(SPINNING_SLACK)
         now = self._clock()
         left = timer.next_due - now
-        if left <= 0.0:
-            timer.run_due()
-        elif (left > SERVE_BEFORE and now - self._served_at >= SERVE_PERIOD) \
-                or now - self._served_at >= SERVE_AT_LEAST:
+        if left > SERVE_BEFORE or now - self._served_at >= SERVE_AT_LEAST:
             self._served_at = now
             executor.spin_once(timeout_sec=0.0)
+        elif left <= 0.0:
+            timer.run_due()
 
     def _spin(self) -> bool:
         if self.mode != 'auto' or self._clock() - self._decided_at < DECIDE_PERIOD:
@@ -154,3 +166,16 @@ class BetweenTicks:
         if len(newest) < RECENT // 4:
             return 0.0
         return statistics.median(duration for _, duration in newest) * timer.rate
+
+
+_PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30
+
+
+def _timer_slack(nanoseconds: int) -> int:
+    """Set the calling thread's timer slack (Linux; elsewhere nothing); returns the one it had."""
+    if not sys.platform.startswith('linux'):
+        return 0
+    prctl = ctypes.CDLL(None).prctl
+    old = prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0)
+    prctl(_PR_SET_TIMERSLACK, nanoseconds, 0, 0, 0)
+    return old

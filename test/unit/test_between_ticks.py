@@ -2,15 +2,27 @@
 250 Hz and more once the ticks take 30 % of the period while it waits, and waits again once they
 would take less than 20 % waiting (the spinning share times the slowdown it measured when it began
 to spin), and never while composites of the application compute in other processes of the
-machine; spinning, it runs the Timer's due ticks itself and serves the executor only while the
-next tick is far, yet every 2 ms at least."""
+machine; spinning, it runs the Timer's due ticks itself and serves the executor while the next
+tick is far, and every 2 ms in any case, ticks behind or not, with no sleep in an idle call."""
 
+import ctypes
+import os
+import resource
 from collections import deque
 
 import pytest
 
 from itasc_bringup.between_ticks import (MAX_SLOWDOWN, RECENT, SERVE_AT_LEAST, SERVE_BEFORE, STALE, WAIT, WAIT_BELOW,
                                          BetweenTicks)
+
+
+@pytest.fixture(autouse=True)
+def _timer_slack_kept():
+    """A spinning BetweenTicks sets this thread's timer slack: each test leaves it as it found it."""
+    prctl = ctypes.CDLL(None).prctl
+    slack = prctl(30, 0, 0, 0, 0)  # PR_GET_TIMERSLACK
+    yield
+    prctl(29, slack, 0, 0, 0)  # PR_SET_TIMERSLACK
 
 
 class _Clock:
@@ -184,6 +196,57 @@ def test_spinning_serves_the_executor_at_least_every_2_ms_even_when_ticks_fill_t
         between.step(executor)
         served = len(executor.waits)
     assert served >= int(0.01 / SERVE_AT_LEAST) and all(wait == 0.0 for wait in executor.waits)
+
+
+def test_spinning_serves_the_executor_every_2_ms_while_the_ticks_are_behind_and_run_back_to_back():
+    clock = _Clock()
+    timer, executor = _Timer(clock), _Executor()
+    between = BetweenTicks('spin', timer=lambda: timer, clock=clock)
+    timer.next_due = clock.now - 1.0  # far behind: a tick is due at every step
+    for _ in range(1000):  # 0.1 s of steps
+        clock.now += 0.0001
+        between.step(executor)
+    assert timer.ran > 900 and len(executor.waits) >= int(0.1 / SERVE_AT_LEAST)
+
+
+def test_a_spinning_thread_serving_an_idle_executor_never_sleeps_and_waiting_again_sleeps_as_before():
+    """rclpy's ``spin_once(timeout_sec=0)`` with nothing to do sleeps for the thread's timer slack
+    (50 us by default); a spinning thread sets its slack to 1 ns, and a waiting one back."""
+    import rclpy
+    from itasc_core.composition.deployment import make_executor
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(context=context, domain_id=int(os.environ.get('ROS_DOMAIN_ID', '0')))
+    node = rclpy.create_node('between_ticks_test', context=context)
+    executor = make_executor(context)
+    executor.add_node(node)
+    clock = _Clock()
+    timer = _Timer(clock)
+    between = BetweenTicks('auto', timer=lambda: timer, clock=clock)
+
+    def sleeps(serve) -> int:
+        """Voluntary context switches of this thread while ``serve()`` serves the idle executor 500 times."""
+        before = resource.getrusage(resource.RUSAGE_THREAD).ru_nvcsw
+        for _ in range(500):
+            serve()
+        return resource.getrusage(resource.RUSAGE_THREAD).ru_nvcsw - before
+
+    def idle_call() -> None:
+        executor.spin_once(timeout_sec=0.0)
+
+    try:
+        assert sleeps(idle_call) > 400  # the kernel's slack
+        timer.ran_for(RECENT, share=0.6)
+        timer.next_due = clock.now + 1.0  # the next tick far: every step serves the executor
+        assert sleeps(lambda: between.step(executor)) == 0 and between.spinning
+        timer.ran_for(RECENT, share=0.05)
+        between.step(executor)  # waits again (one executor wait of WAIT)
+        assert not between.spinning and sleeps(idle_call) > 400
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
 
 
 @pytest.mark.parametrize('mode, spinning', [('spin', True), ('wait', False)])
