@@ -443,6 +443,39 @@ def test_an_output_that_the_deployment_puts_here_is_tapped_when_it_appears_and_n
     assert [m.value.tolist() for t, _, m in messages if t == '/app/relation'] == [[0.1 * k] for k in range(20)]
 
 
+def test_every_output_of_the_recorders_process_under_its_prefix_is_recorded_from_its_first_sample(context, tmp_path):
+    """An output that is no data flow of the model (a Driver's ``<robot>/joint_states``) but lives
+    in the recorder's process is tapped when it appears: every sample is in the recording, with no
+    graph scan (one every 60 s here) and no DDS reader. It was found by the scan, a few new topics a
+    scan, and a ``--between-ticks spin --record`` run at 1 kHz recorded it from ~1-2 s on."""
+    import numpy as np
+
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.ports import OutputPort, PortSpec
+    from itasc_core.communication.samples import JointSample
+    from sensor_msgs.msg import JointState
+
+    path = tmp_path / 'bag'
+    recorder = Recorder(path, prefix='/app', context=context, scan_period=60.0)
+    node = rclpy.create_node('robot', context=context)
+    try:
+        spec = PortSpec(name='joint_states', direction='output', msg_type=JointState)
+        here = OutputPort(node, spec.with_id('/app/arm/joint_states'))
+        elsewhere = OutputPort(node, spec.with_id('/other/arm/joint_states'))  # not under the prefix
+        for k in range(20):
+            for port in (here, elsewhere):
+                port.write(JointSample(k * 0.001, ('j1',), position=np.array([0.1 * k])))
+            recorder.drain()
+        assert here._dds.publisher.get_subscription_count() == 0
+    finally:
+        recorder.destroy_node()
+        node.destroy_node()
+    topics, messages = _read_all(path)
+    recorded = [m.position.tolist() for t, _, m in messages if t == '/app/arm/joint_states']
+    assert recorded == [[0.1 * k] for k in range(20)]
+    assert '/other/arm/joint_states' not in topics
+
+
 def test_a_spinning_recorded_run_sends_its_own_data_flow_over_no_dds(tmp_path):
     """``--deploy single --record --between-ticks spin`` at 1 kHz: no output of the application
     has a DDS reader (before: the recorder's and the console's readers made before the bring-up

@@ -50,6 +50,8 @@ class Observer:
         #: Who else gets what a DDS reader made by :meth:`samples` receives (:meth:`share`), by topic.
         self._sharing: dict[str, list[Callback]] = {}
         self._bus = LocalBus.of(node.context)
+        #: Told of every output of this process (:meth:`on_output`).
+        self._outputs_to: list[Callable[[OutputPort], None]] = []
         self._unwatch = self._bus.watch(self._appeared)
 
     def observe(self, topic: str, callback: Callback, *, subscribe: Callable[[], Any]) -> None:
@@ -90,6 +92,13 @@ class Observer:
         others.append(callback)
         return True
 
+    def on_output(self, appeared: Callable[[OutputPort], None]) -> None:
+        """Call ``appeared(port)`` for every output of this process: those there now and, as they
+        appear, the others (before their first sample)."""
+        self._outputs_to.append(appeared)
+        for port in self._bus.outputs():
+            appeared(port)
+
     def local(self, topic: str) -> bool:
         """Whether ``topic``'s output is in this process."""
         return self._bus.lookup(topic) is not None
@@ -99,6 +108,8 @@ class Observer:
         return set(self._tapped)
 
     def _appeared(self, port: OutputPort) -> None:
+        for appeared in self._outputs_to:
+            appeared(port)
         if port.topic in self._wanted:
             self._tap(port)
 
@@ -118,6 +129,7 @@ class Observer:
     def close(self) -> None:
         """Tap nothing more (the DDS readers go with the node)."""
         self._unwatch()
+        self._outputs_to.clear()
         for topic, port in self._tapped.items():
             port.untap(self._wanted[topic])
         self._tapped.clear()

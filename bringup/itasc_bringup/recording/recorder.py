@@ -10,7 +10,9 @@ flow, the events and every life-cycle transition of a run).
 Topics known from the model are recorded from the start: :meth:`Recorder.record_model`
 subscribes to every data-flow topic of a composition model, and :meth:`Recorder.record` to any
 other topic (a composite's event and state topics), before any publisher exists, so the first
-tick is in the recording. Other topics are discovered: every ``scan_period`` the node looks at
+tick is in the recording, and so is every output of the recorder's own process under ``prefix``,
+data flow of the model or not (a Driver's ``<robot>/joint_states``), from its first sample. Other
+topics are discovered: every ``scan_period`` the node looks at
 the ROS graph and subscribes to new topics under ``prefix`` (a few per scan:
 :data:`QUERIES_PER_SCAN`) with a QoS that matches its
 publishers: keep-last ``depth``, reliable unless a publisher is best effort, transient local when
@@ -60,6 +62,8 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
 from itasc_core.communication.cdr import serialize
+from itasc_core.communication.ports import OutputPort
+from itasc_core.communication.qos import DATA_QOS
 
 from ..observe import Observer
 from .bag import qos_profiles
@@ -145,6 +149,7 @@ class Recorder(Node):
         self._observer = Observer(self, elsewhere=elsewhere)
         #: tapped samples not written yet: (topic, channel, tapped at [ns], sample)
         self._pending: list[tuple[str, int, int, Any]] = []
+        self._observer.on_output(self._output_here)
 
         self._atexit = _weak_close(self)
         atexit.register(self._atexit)
@@ -163,8 +168,6 @@ class Recorder(Node):
         """Record every data-flow topic of the composition ``model`` (living in ``namespace``,
         default ``/<model name>``) from now on; call it before the hierarchy is configured so
         that the first tick is recorded. Returns the topics."""
-        from itasc_core.communication.qos import DATA_QOS
-
         from .topics import data_flow_topics
         topics = data_flow_topics(model, namespace=namespace)
         for topic, type_name in topics.items():
@@ -258,6 +261,15 @@ class Recorder(Node):
         self.get_logger().info(f'{topic}: a {qos.reliability.name.lower()} volatile reader more, for '
                                f'{", ".join(f"{p.node_namespace}/{p.node_name}" for p in unmatched)}')
         return 2
+
+    def _output_here(self, port: OutputPort) -> None:
+        """Every output of this process under ``prefix`` is recorded (tapped) from its first sample,
+        data flow of the model or not (a Driver's ``<robot>/joint_states``): the graph scan finds a
+        few new topics a scan, and a spinning run's began ~1-2 s late."""
+        topic = port.topic
+        if topic not in self.topics and topic not in self._skipped and topic not in self.exclude \
+                and _under(topic, self.prefix):
+            self.record(topic, port.spec.msg_type_name, qos=DATA_QOS)
 
     def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile]) -> None:
         try:

@@ -186,6 +186,10 @@ class LocalBus:
     def lookup(self, topic: str) -> 'OutputPort | None':
         return self._outputs.get(topic)
 
+    def outputs(self) -> list['OutputPort']:
+        """The outputs living in this process now."""
+        return list(self._outputs.values())
+
     def read_remote(self, topic: str, port: 'InputPort') -> '_RemoteReader':
         """The reader of ``topic`` (published in another process) that hands its samples to
         ``port`` too: the one the inputs of ``port``'s composite already read it with, or a new one
