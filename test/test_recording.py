@@ -1,6 +1,7 @@
 """The run recorder writes MCAP ROS 2 bags that rosbags decodes without a ROS install, including
 our own itasc_msgs types, and that stay readable when the recording process is signalled
 (SPEC: "recording the whole run to MCAP")."""
+import contextlib
 import os
 import pathlib
 import signal
@@ -33,6 +34,17 @@ def _read_all(path: pathlib.Path):
         messages = [(c.topic, t, reader.deserialize(raw, c.msgtype))
                     for c, t, raw in reader.messages()]
     return connections, messages
+
+
+@contextlib.contextmanager
+def _recorder_and_node(recorder):
+    """``recorder`` and a node of its context that writes what it records; both destroyed after."""
+    node = rclpy.create_node('writer', context=recorder.context)
+    try:
+        yield recorder, node
+    finally:
+        recorder.destroy_node()
+        node.destroy_node()
 
 
 def test_recorder_records_every_topic_under_prefix(context, tmp_path):
@@ -423,9 +435,8 @@ def test_an_output_that_the_deployment_puts_here_is_tapped_when_it_appears_and_n
     from itasc_msgs.msg import Features
 
     path = tmp_path / 'bag'
-    recorder = Recorder(path, prefix='/app', context=context, elsewhere=lambda topic: topic.startswith('/app/far/'))
-    node = rclpy.create_node('scene', context=context)
-    try:
+    with _recorder_and_node(Recorder(path, prefix='/app', context=context,
+                                     elsewhere=lambda topic: topic.startswith('/app/far/'))) as (recorder, node):
         recorder.record('/app/relation', 'itasc_msgs/msg/Features', qos=QoSProfile(depth=10))
         recorder.record('/app/far/relation', 'itasc_msgs/msg/Features', qos=QoSProfile(depth=10))
         readers = {topic: [i.node_name for i in recorder.get_subscriptions_info_by_topic(topic)]
@@ -436,9 +447,6 @@ def test_an_output_that_the_deployment_puts_here_is_tapped_when_it_appears_and_n
             port.write(FeaturesSample(k * 0.001, ('distance',), ('j1',), np.array([0.1 * k]), np.array([[1.0]])))
             recorder.drain()
         assert port._dds.publisher.get_subscription_count() == 0
-    finally:
-        recorder.destroy_node()
-        node.destroy_node()
     _, messages = _read_all(path)
     assert [m.value.tolist() for t, _, m in messages if t == '/app/relation'] == [[0.1 * k] for k in range(20)]
 
@@ -456,9 +464,7 @@ def test_every_output_of_the_recorders_process_under_its_prefix_is_recorded_from
     from sensor_msgs.msg import JointState
 
     path = tmp_path / 'bag'
-    recorder = Recorder(path, prefix='/app', context=context, scan_period=60.0)
-    node = rclpy.create_node('robot', context=context)
-    try:
+    with _recorder_and_node(Recorder(path, prefix='/app', context=context, scan_period=60.0)) as (recorder, node):
         spec = PortSpec(name='joint_states', direction='output', msg_type=JointState)
         here = OutputPort(node, spec.with_id('/app/arm/joint_states'))
         elsewhere = OutputPort(node, spec.with_id('/other/arm/joint_states'))  # not under the prefix
@@ -467,9 +473,6 @@ def test_every_output_of_the_recorders_process_under_its_prefix_is_recorded_from
                 port.write(JointSample(k * 0.001, ('j1',), position=np.array([0.1 * k])))
             recorder.drain()
         assert here._dds.publisher.get_subscription_count() == 0
-    finally:
-        recorder.destroy_node()
-        node.destroy_node()
     topics, messages = _read_all(path)
     recorded = [m.position.tolist() for t, _, m in messages if t == '/app/arm/joint_states']
     assert recorded == [[0.1 * k] for k in range(20)]
