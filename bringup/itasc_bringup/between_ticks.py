@@ -14,10 +14,10 @@ returns after ~16 us without sleeping. It serves the executor whenever the next 
 before a due tick too: ticks that fill the period (a loaded machine) are run back to back, and a
 loop that ran them first served nothing while they were behind; the joint states of a driver in
 another process then went untaken until its Driver was taken for silent (Safety;
-``approach_object_ros_driver`` at 1 kHz with ``--between-ticks spin``, two runs of two). The whole application at
-1 kHz, ``--deploy single``, two alternating pairs of 20 s runs (``bench/bench_app.py --json
---between-ticks wait|auto``): tick p50 758/811 -> 531/648 us, p99 1141/1198 -> 1026/1053 us,
-991/981 -> 998/998 Hz, 187/379 -> 46/39 ticks dropped.
+``approach_object_ros_driver`` at 1 kHz with ``--between-ticks spin``, two runs of two). The whole
+application at 1 kHz, ``--deploy single``, two alternating pairs of 20 s runs
+(``bench/bench_app.py --json --between-ticks wait|auto``): tick p50 758/811 -> 531/648 us, p99
+1141/1198 -> 1026/1053 us, 991/981 -> 998/998 Hz, 187/379 -> 46/39 ticks dropped.
 
 Spinning keeps a core busy. So ``auto`` (the default) spins only at :data:`SPIN_RATE` Hz and more
 (the ~0.2 ms a sleep costs a tick matters in a period of a few milliseconds, not in one of 10 ms)
