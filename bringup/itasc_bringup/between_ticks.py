@@ -50,7 +50,10 @@ import itertools
 import statistics
 import sys
 import time
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
+
+if TYPE_CHECKING:
+    from itasc_core.composition.realtime import ThreadPriority
 
 __all__ = ['BetweenTicks', 'MAX_SLOWDOWN', 'MODES', 'SPIN_FROM', 'SPIN_RATE', 'WAIT_BELOW']
 
@@ -86,13 +89,17 @@ class BetweenTicks:
 
     def __init__(self, mode: str = 'auto', *, timer: Callable[[], Any],
                  on_change: Callable[[bool, float], None] | None = None,
-                 clock: Callable[[], float] = time.monotonic, alone: Callable[[], bool] = lambda: True) -> None:
+                 clock: Callable[[], float] = time.monotonic, alone: Callable[[], bool] = lambda: True,
+                 priority: ThreadPriority | None = None) -> None:
         """``on_change(spinning, share)``: told when ``auto`` starts or stops spinning; ``alone()``:
-        whether no composite of the application computes in another process of this machine."""
+        whether no composite of the application computes in another process of this machine;
+        ``priority``: the real-time priority of the thread while a Timer ticks and it waits
+        (:mod:`itasc_core.composition.realtime`; never while it spins)."""
         if mode not in MODES:
             raise ValueError(f'between ticks: {mode!r} is not one of {MODES}')
         self.mode = mode
         self._timer = timer
+        self._priority = priority
         self._alone = alone
         self._on_change = on_change
         self._clock = clock
@@ -111,11 +118,15 @@ class BetweenTicks:
         :data:`WAIT`), or, spinning, the due ticks, the executor served, or nothing."""
         timer = self._timer()
         if timer is None or not self._spin():
+            if self._priority is not None:
+                self._priority.realtime(timer is not None)
             if self._slack is not None:
                 _timer_slack(self._slack)
                 self._slack = None
             executor.spin_once(timeout_sec=WAIT)
             return
+        if self._priority is not None:
+            self._priority.realtime(False)
         if self._slack is None:
             self._slack = _timer_slack(SPINNING_SLACK)
         now = self._clock()

@@ -89,6 +89,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                              f'the ticks are up to a third faster); auto: spin at {SPIN_RATE:g} Hz and more once '
                              f'the ticks take {SPIN_FROM * 100:.0f}%% of the period waiting, until they would take '
                              f'less than {WAIT_BELOW * 100:.0f}%% (default)')
+    parser.add_argument('--thread-priority', type=int, default=50, metavar='PRIORITY',
+                        help='the real-time (SCHED_FIFO) priority, 1-99, of the threads that tick while the '
+                             'application runs and they wait between ticks, where permitted; 0: normal scheduling '
+                             '(default: 50, as ros2_control)')
     parser.add_argument('-v', '--verbose', action='store_true',
                         help='print every transition of every composite ([state] lines) and [status] lines')
     parser.add_argument('--summary-json', metavar='FILE', type=pathlib.Path, default=None,
@@ -101,6 +105,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error(f'--duration must be a finite number of seconds > 0 (got {args.duration})')
     if args.rate is not None and not MIN_RATE <= args.rate <= MAX_RATE:
         parser.error(f'--rate must be between {MIN_RATE:g} and {MAX_RATE:g} Hz (got {args.rate})')
+    if not 0 <= args.thread_priority <= 99:
+        parser.error(f'--thread-priority must be 0 (normal scheduling) or 1-99 (got {args.thread_priority})')
     if args.summary_json is not None and not args.summary_json.parent.is_dir():
         parser.error(f'--summary-json: no directory {args.summary_json.parent}')
     from itasc_core.composition.hosts import HOST_NAME
@@ -163,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
     from itasc_core.composition.composer import bring_up
     from itasc_core.composition.deployment import Runtime, make_executor, end_process_within
     from itasc_core.composition.model import walk
+    from itasc_core.composition.realtime import ENV as PRIORITY_ENV
+    from itasc_core.composition.realtime import ThreadPriority
     from itasc_core.composition.zygote import zygote_for
     from itasc_core.entity import CompositeContext
 
@@ -175,6 +183,7 @@ def main(argv: list[str] | None = None) -> int:
 
     started = time.monotonic()
     age = process_age()  # the interpreter's start, the imports and the model's validation
+    os.environ[PRIORITY_ENV] = str(args.thread_priority)  # the composite processes tick at it too
     zygote = zygote_for(model) if args.deploy == 'per-composite' else None  # before DDS starts threads
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
@@ -272,8 +281,9 @@ def main(argv: list[str] | None = None) -> int:
             if share:  # not when the hierarchy stopped computing
                 console.show(f'{"spinning" if spinning else "waiting"} between ticks: they take {share:.0%} of '
                              'the period (--between-ticks)')
+        priority = ThreadPriority(args.thread_priority, refused=lambda why: console.show(f'{why} (--thread-priority)'))
         between = BetweenTicks(args.between_ticks, timer=lambda: composer.timer, on_change=between_changed,
-                               alone=lambda: not runtime.local_processes)
+                               alone=lambda: not runtime.local_processes, priority=priority)
         while True:
             between.step(executor)
             if recorder is not None:
@@ -332,6 +342,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f'error: the hierarchy did not stop within {STOP_TIMEOUT} s (state {state})', file=sys.stderr)
                 code = EXIT_ERROR
                 break
+        priority.realtime(False)  # the teardown is no tick
         watch.poll(composer.timer)  # the last ticks' samples, for the summary
         console.show_safety()
         if recorder is not None:  # finished before the verdict, which says whether it is whole

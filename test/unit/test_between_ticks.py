@@ -249,6 +249,34 @@ def test_a_spinning_thread_serving_an_idle_executor_never_sleeps_and_waiting_aga
         rclpy.try_shutdown(context=context)
 
 
+class _Priority:
+    """What the policy uses of a ThreadPriority: whether the thread is to run at it now."""
+
+    def __init__(self) -> None:
+        self.on = False
+
+    def realtime(self, on: bool) -> None:
+        self.on = on
+
+
+def test_the_thread_waits_at_its_real_time_priority_once_a_timer_ticks_and_never_spins_at_it():
+    """A real-time thread that never sleeps is throttled by the kernel: it spins at the normal policy."""
+    clock = _Clock()
+    timer, executor, priority, ticking = _Timer(clock), _Executor(), _Priority(), []
+    between = BetweenTicks('auto', timer=lambda: timer if ticking else None, clock=clock, priority=priority)
+    between.step(executor)
+    assert not priority.on  # the bring-up: no Timer yet
+    ticking.append(True)
+    between.step(executor)
+    assert priority.on and not between.spinning
+    timer.ran_for(RECENT, share=0.6)
+    between.step(executor)
+    assert between.spinning and not priority.on
+    timer.ran_for(RECENT, share=0.05)
+    between.step(executor)
+    assert not between.spinning and priority.on
+
+
 @pytest.mark.parametrize('mode, spinning', [('spin', True), ('wait', False)])
 def test_spin_and_wait_hold_whatever_the_ticks_take(mode, spinning):
     clock = _Clock()

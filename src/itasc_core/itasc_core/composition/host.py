@@ -3,12 +3,13 @@
 Started by the parent's Composer (forked from its process's zygote, :mod:`.zygote`); does for
 its composite what the bootstrap does for the root: brings up its Coordinator, Composer and
 Configurator, then lets the life-cycle run. Its Scheduler is triggered over the composite's trigger
-topic. The process ends after its Coordinator notified the parent that it stopped (exit 0), or when
-the parent process is gone (exit 1): a composite whose parent died can never be stopped in order,
-and must not outlive it. SIGINT and SIGTERM are ignored: a terminal's
-Ctrl-C and a process manager's stop reach every process of the application, and the bootstrap
-answers them with an orderly Stop of the whole hierarchy, which this process must stay alive to
-take part in. Its parent ends it with SIGKILL when it cannot stop in order.
+topic; while the composite runs, the thread that waits for the triggers and ticks has a real-time
+priority where permitted (:mod:`.realtime`). The process ends after its Coordinator notified the
+parent that it stopped (exit 0), or when the parent process is gone (exit 1): a composite whose
+parent died can never be stopped in order, and must not outlive it. SIGINT and SIGTERM are ignored:
+a terminal's Ctrl-C and a process manager's stop reach every process of the application, and the
+bootstrap answers them with an orderly Stop of the whole hierarchy, which this process must stay
+alive to take part in. Its parent ends it with SIGKILL when it cannot stop in order.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from ..communication.dds import configure_dds, send_from_a_dds_thread
 from ..entity import CompositeContext
 from .composer import bring_up
 from .deployment import Runtime, make_executor, end_process_within
+from .realtime import ThreadPriority, priority_from_env
 from .zygote import zygote_for
 from .model import CompositeModel
 
@@ -75,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
                       zygote=zygote)
     orphaned = parent_gone(args.parent_pid)
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
+    priority = ThreadPriority(priority_from_env(), refused=composer.get_logger().info)
     stopped_at = None
     looked_at = 0.0
     try:
@@ -85,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             if now - looked_at < CHECK_PERIOD:
                 continue  # a spin runs one callback: not a look at the parent and the state per message
             looked_at = now
+            priority.realtime(composer.coordinator.state.startswith('Active.Run'))  # its ticks, not the bring-up's work
             if orphaned():
                 composer.get_logger().error(f'parent process {args.parent_pid} is gone; {model.name} ends')
                 break
@@ -93,6 +97,7 @@ def main(argv: list[str] | None = None) -> int:
             if stopped_at is not None and now - stopped_at > LINGER:
                 break
     finally:
+        priority.realtime(False)
         runtime.shutdown(orderly=stopped_at is not None)
         end_process_within()
         runtime.reap(wait=True)
