@@ -93,8 +93,8 @@ class BetweenTicks:
                  priority: ThreadPriority | None = None) -> None:
         """``on_change(spinning, share)``: told when ``auto`` starts or stops spinning; ``alone()``:
         whether no composite of the application computes in another process of this machine;
-        ``priority``: the real-time priority of the thread while a Timer ticks and it waits
-        (:mod:`itasc_core.composition.realtime`; never while it spins)."""
+        ``priority``: the real-time priority of the thread while the hierarchy computes in the
+        Timer's ticks and it waits (:mod:`itasc_core.composition.realtime`; never while it spins)."""
         if mode not in MODES:
             raise ValueError(f'between ticks: {mode!r} is not one of {MODES}')
         self.mode = mode
@@ -119,7 +119,7 @@ class BetweenTicks:
         timer = self._timer()
         if timer is None or not self._spin():
             if self._priority is not None:
-                self._priority.realtime(timer is not None)
+                self._priority.realtime(timer is not None and self._computing(timer))
             if self._slack is not None:
                 _timer_slack(self._slack)
                 self._slack = None
@@ -136,6 +136,11 @@ class BetweenTicks:
             executor.spin_once(timeout_sec=0.0)
         elif left <= 0.0:
             timer.run_due()
+
+    def _computing(self, timer: Any) -> bool:
+        """Whether the hierarchy computes in the Timer's ticks (a Timer ticks through the bring-up
+        with nothing to compute)."""
+        return bool(timer.stamps) and self._clock() - timer.stamps[-1] <= max(STALE, 2.0 / timer.rate)
 
     def _spin(self) -> bool:
         if self.mode != 'auto' or self._clock() - self._decided_at < DECIDE_PERIOD:

@@ -259,14 +259,18 @@ class _Priority:
         self.on = on
 
 
-def test_the_thread_waits_at_its_real_time_priority_once_a_timer_ticks_and_never_spins_at_it():
-    """A real-time thread that never sleeps is throttled by the kernel: it spins at the normal policy."""
+def test_the_thread_waits_at_its_real_time_priority_while_the_hierarchy_computes_and_never_spins_at_it():
+    """Not through the bring-up (its work is no tick), nor once the ticks stopped computing; and a
+    real-time thread that never sleeps is throttled by the kernel: it spins at the normal policy."""
     clock = _Clock()
-    timer, executor, priority, ticking = _Timer(clock), _Executor(), _Priority(), []
-    between = BetweenTicks('auto', timer=lambda: timer if ticking else None, clock=clock, priority=priority)
+    timer, executor, priority, deployed = _Timer(clock), _Executor(), _Priority(), []
+    between = BetweenTicks('auto', timer=lambda: timer if deployed else None, clock=clock, priority=priority)
     between.step(executor)
     assert not priority.on  # the bring-up: no Timer yet
-    ticking.append(True)
+    deployed.append(True)
+    between.step(executor)
+    assert not priority.on  # a Timer, ticking with nothing to compute yet
+    timer.ran_for(RECENT // 2, share=0.05)
     between.step(executor)
     assert priority.on and not between.spinning
     timer.ran_for(RECENT, share=0.6)
@@ -275,6 +279,9 @@ def test_the_thread_waits_at_its_real_time_priority_once_a_timer_ticks_and_never
     timer.ran_for(RECENT, share=0.05)
     between.step(executor)
     assert not between.spinning and priority.on
+    clock.now += 2 * STALE  # the hierarchy stopped computing (its stop, the teardown)
+    between.step(executor)
+    assert not priority.on
 
 
 @pytest.mark.parametrize('mode, spinning', [('spin', True), ('wait', False)])
