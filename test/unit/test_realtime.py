@@ -11,7 +11,7 @@ import threading
 
 import pytest
 
-from itasc_core.composition.realtime import ThreadPriority
+from itasc_core.composition.realtime import DEFAULT_PRIORITY, ENV, ThreadPriority, priority_from_env
 
 
 def _permitted() -> bool:
@@ -74,3 +74,10 @@ def test_where_the_policy_is_not_permitted_it_says_why_once_and_ticks_at_the_nor
                          env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))).stdout
     assert out.strip() == ('1 real-time priority 50 not permitted ([Errno 1] Operation not permitted; ulimit -r '
                            'is 0): ticking at normal priority True False')
+
+
+@pytest.mark.parametrize('value, priority', [('0', 0), ('80', 80), ('', DEFAULT_PRIORITY), ('150', DEFAULT_PRIORITY),
+                                             ('high', DEFAULT_PRIORITY)])
+def test_a_composite_process_takes_the_priority_its_bootstrap_asked_for_or_the_default(monkeypatch, value, priority):
+    monkeypatch.setenv(ENV, value)
+    assert priority_from_env() == priority

@@ -30,9 +30,10 @@ ENV = 'ITASC_THREAD_PRIORITY'
 
 
 def priority_from_env() -> int:
-    """The priority the bootstrap asked for (:data:`ENV`), :data:`DEFAULT_PRIORITY` if none."""
-    value = os.environ.get(ENV, '')
-    return int(value) if value.strip().isdigit() else DEFAULT_PRIORITY
+    """The priority the bootstrap asked for (:data:`ENV`), :data:`DEFAULT_PRIORITY` if none or
+    none of 0-99 (a composite process started by a host agent has the agent's environment)."""
+    value = os.environ.get(ENV, '').strip()
+    return int(value) if value.isdigit() and int(value) <= 99 else DEFAULT_PRIORITY
 
 
 class ThreadPriority:
