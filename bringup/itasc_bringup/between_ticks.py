@@ -173,8 +173,7 @@ class BetweenTicks:
         """The median share of the period the newest computing ticks took (those that started after
         ``since``, ``time.monotonic()``); 0 before there are enough, and below :data:`SPIN_RATE`."""
         timer = self._timer()
-        if timer is None or timer.rate < SPIN_RATE or len(timer.stamps) < RECENT \
-                or self._clock() - timer.stamps[-1] > STALE:
+        if timer is None or timer.rate < SPIN_RATE or len(timer.stamps) < RECENT or not self._computing(timer):
             return 0.0
         newest = list(itertools.islice(
             itertools.takewhile(lambda tick: tick[0] > since, zip(reversed(timer.stamps), reversed(timer.durations))),

@@ -13,6 +13,7 @@ import time
 import numpy as np
 import pytest
 from processes import Spawned, started_here
+from scheduling import needs_fifo
 
 BOOTSTRAP = [sys.executable, '-m', 'itasc_bringup.bootstrap']
 
@@ -179,16 +180,7 @@ def _wake_ups_of_main_thread(pid: int) -> int:
         return int(status.read().split('\nvoluntary_ctxt_switches:')[1].split()[0])
 
 
-def _fifo_permitted() -> bool:
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
-    except PermissionError:
-        return False
-    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    return True
-
-
-@pytest.mark.skipif(not _fifo_permitted(), reason='SCHED_FIFO is not permitted here (ulimit -r is 0)')
+@needs_fifo
 @pytest.mark.parametrize('priority, policy', [('50', os.SCHED_FIFO), ('0', os.SCHED_OTHER)])
 def test_the_threads_that_tick_wait_for_their_ticks_at_a_real_time_priority(priority, policy):
     """``--thread-priority`` (50 by default, as ros2_control's): while the application runs, the

@@ -10,18 +10,9 @@ import sys
 import threading
 
 import pytest
+from scheduling import needs_fifo
 
 from itasc_core.composition.realtime import DEFAULT_PRIORITY, ENV, ThreadPriority, priority_from_env
-
-
-def _permitted() -> bool:
-    policy = os.sched_getscheduler(0)
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
-    except PermissionError:
-        return False
-    os.sched_setscheduler(0, policy, os.sched_param(0))
-    return True
 
 
 def _in_a_thread(run):
@@ -33,7 +24,7 @@ def _in_a_thread(run):
     return result[0]
 
 
-@pytest.mark.skipif(not _permitted(), reason='SCHED_FIFO is not permitted here (ulimit -r is 0)')
+@needs_fifo
 def test_the_calling_thread_runs_under_sched_fifo_while_asked_and_the_normal_policy_after():
     def run():
         priority = ThreadPriority(50)

@@ -206,19 +206,20 @@ class SolverEntity(FunctionalEntity):
         if late:
             self._combined = -math.inf, {}
             return []
-        return [self._problem_rows(sample) for sample in self._one_configuration(counting, oldest=remote_fresh)
-                if sample.rows]
+        arrived = {topic: port.take_arrived(topic) for topic in port.remote}
+        return [self._problem_rows(sample)
+                for sample in self._one_configuration(counting, arrived=arrived, oldest=remote_fresh) if sample.rows]
 
-    def _one_configuration(self, counting: dict[str, RowsSample], *, oldest: float) -> list[RowsSample]:
-        """Of the Tasks that contribute rows (``counting``: topic -> its newest rows), the rows of the
-        newest configuration (stamp, not before ``oldest``) that each has rows of; if they have none
-        in common, the rows last combined while those count, else none."""
+    def _one_configuration(self, counting: dict[str, RowsSample], *, arrived: dict[str, list[RowsSample]],
+                           oldest: float) -> list[RowsSample]:
+        """Of the Tasks that contribute rows (``counting``: topic -> its newest rows; ``arrived``:
+        topic -> all its rows that came since the last tick), the rows of the newest configuration
+        (stamp, not before ``oldest``) that each has rows of; if they have none in common, the rows
+        last combined while those count, else none."""
         history = self._configurations
         for topic in [topic for topic in history if topic not in counting or not counting[topic].rows]:
             del history[topic]  # gone, switched off, stale or writing rows of none
         contributing = [topic for topic, sample in counting.items() if sample.rows]
-        port = self.inputs['rows']
-        arrived = {topic: port.take_arrived(topic) for topic in port.remote}
         for topic in contributing:
             stamps = history.setdefault(topic, {})
             for sample in (*arrived.get(topic, ()), counting[topic]):  # all that came since the last tick
