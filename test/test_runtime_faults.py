@@ -95,7 +95,7 @@ def test_a_stalled_task_process_holds_the_robot_still_until_its_rows_come_again(
     stalled = [v for t, v in commands if 0.25 < t < 0.55]
     assert len(stalled) > 10 and max(stalled) == 0.0, stalled
     assert max(v for t, v in commands if 0.6 < t < 2.0) > 1e-3  # moving again
-    assert 'the rows of AvoidObstacle are older than remote_rows_age (0.1 s): the robot holds still' in app.output()
+    assert 'the rows of AvoidObstacle are older than remote_rows_age (0.1 s): the robot holds still' in app.err
 
 
 def test_a_run_shorter_than_the_drivers_grace_names_the_driver_that_never_reported(tmp_path):

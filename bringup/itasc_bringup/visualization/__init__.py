@@ -124,10 +124,13 @@ def start_visualization(app: str, *, model, node, composer, recorder=None, obser
         recorder.record(markers, 'visualization_msgs/msg/MarkerArray', qos=DATA_QOS)
     # No preexec_fn: DDS runs threads in this process by now, and a child forked from a threaded
     # process may deadlock before exec (Python's subprocess documentation); the display follows
-    # this process itself (``--parent``) and is given its lower priority from here.
+    # this process itself (``--parent``) and is given its lower priority from here. A session of
+    # its own: a terminal's Ctrl-C is this process's to answer (it ends the display with SIGTERM);
+    # one that reached the display while it still loaded (slower to start next to real-time
+    # ticking threads) printed a KeyboardInterrupt traceback.
     process = subprocess.Popen([sys.executable, '-m', 'itasc_bringup.visualization.node', str(path.resolve()),
                                 '--feed', '--parent', str(os.getpid())], stdin=subprocess.PIPE,
-                               stdout=subprocess.DEVNULL)
+                               stdout=subprocess.DEVNULL, start_new_session=True)
     os.setpriority(os.PRIO_PROCESS, process.pid, min(19, os.getpriority(os.PRIO_PROCESS, 0) + DISPLAY_NICENESS))
     feed = FeedWriter(node, LatestSamples(node, topics, observers=observers), process.stdin.fileno(),
                       rate=DISPLAY_RATE)
