@@ -16,6 +16,7 @@ from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 from rclpy.utilities import get_default_context
 
+from .communication import call_sites
 from .communication.events import EventListener, EventRaiser, events_topic
 from .communication.process_writers import PARAMETER_EVENTS, ProcessWriters, serving_nothing
 from .pace import PACE
@@ -69,11 +70,14 @@ class Entity(Node):
     square of the number of Tasks. The Configurator of each composite serves its entities'
     parameters instead (:mod:`.configuration.parameter_service`). For the same reason an entity
     logs to ``/rosout`` and announces its parameter changes on ``/parameter_events`` through its
-    process's writers (:mod:`.communication.process_writers`), when the process has them.
+    process's writers (:mod:`.communication.process_writers`), when the process has them. Its log
+    calls find their call site without ``inspect`` (:mod:`.communication.call_sites`): one may come
+    from a tick.
     """
 
     def __init__(self, name: str, *, composite: CompositeContext) -> None:
         PACE.gap()
+        call_sites.install()
         writers = ProcessWriters.of(get_default_context())
         logs_there = writers if writers is not None and writers.logs(composite.namespace) else None
         super().__init__(name, namespace=composite.namespace, enable_rosout=logs_there is None, **serving_nothing())
