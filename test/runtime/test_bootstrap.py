@@ -196,6 +196,24 @@ def test_the_threads_that_tick_wait_for_their_ticks_at_a_real_time_priority(prio
     assert len(policies) == 4 and set(policies.values()) == {policy}, policies
 
 
+@needs_fifo
+def test_a_composite_in_safety_ticks_on_at_its_real_time_priority():
+    """A composite in Safety goes on ticking (each tick makes its entities safe: a Driver commands
+    zero) so its process's main thread keeps SCHED_FIFO; it dropped to the normal policy, and the
+    commands that hold the robot still came as late as any other thread let them."""
+    with Spawned([*BOOTSTRAP, '-v', 'pattern_demo', '--deploy', 'per-composite', '--rate', '100',
+                  '--duration', '6']) as app:
+        app.wait_for_line('[state] app: Active.Run.Running', timeout=120)
+        program, = _host_processes('/app/program')
+        hold, = _host_processes('/app/program/hold')
+        os.kill(hold, signal.SIGKILL)
+        app.wait_for_line('[state] program: Safety', timeout=30)
+        time.sleep(0.5)
+        policy = os.sched_getscheduler(program)
+        assert app.finish(timeout=120) == 3, app.output()  # 3: the run went through Safety
+    assert policy == os.SCHED_FIFO, policy
+
+
 def test_a_composite_process_sleeps_between_its_ticks():
     """At 10 Hz a composite's process has a few things a second to do (its ticks, their data, the
     host's checks). Before, each Coordinator's update timer woke it 200 times a second besides

@@ -52,6 +52,12 @@ def parent_gone(pid: int) -> Callable[[], bool]:
     return lambda: bool(select.select([pidfd], [], [], 0)[0])
 
 
+def _ticks(state: str) -> bool:
+    """Whether a composite in ``state`` ticks: Running, and Safety too (each tick makes its entities
+    safe, a Driver commanding zero), not the bring-up's or the stop's work."""
+    return state.startswith(('Active.Run', 'Safety'))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--spec', required=True)
@@ -88,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
             if now - looked_at < CHECK_PERIOD:
                 continue  # a spin runs one callback: not a look at the parent and the state per message
             looked_at = now
-            priority.realtime(composer.coordinator.state.startswith('Active.Run'))  # its ticks, not the bring-up's work
+            priority.realtime(_ticks(composer.coordinator.state))
             if orphaned():
                 composer.get_logger().error(f'parent process {args.parent_pid} is gone; {model.name} ends')
                 break
