@@ -39,9 +39,8 @@ print(json.dumps({'first_ms': first * 1e3, 'later_ms': statistics.median(later) 
 '''
 
 
-def run(mode: str, *, domain: int) -> dict:
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    out = subprocess.run([sys.executable, '-c', CHILD, mode], capture_output=True, text=True, env=env, check=True)
+def run(mode: str) -> dict:
+    out = subprocess.run([sys.executable, '-c', CHILD, mode], capture_output=True, text=True, check=True)
     return json.loads(out.stdout.splitlines()[-1])
 
 
@@ -54,7 +53,7 @@ def main() -> None:
     results: dict[str, list[dict]] = {'rclpy': [], 'call_sites': []}
     for _ in range(args.repeat):
         for mode, runs in results.items():
-            runs.append(run(mode, domain=int(os.environ.get('ROS_DOMAIN_ID', '0'))))
+            runs.append(run(mode))
     for mode, runs in results.items():
         print(f"{mode:>10}: first warning {statistics.median(r['first_ms'] for r in runs):.2f} ms, "
               f"a later one {statistics.median(r['later_ms'] for r in runs):.3f} ms "

@@ -3,21 +3,19 @@ the tests of the real-time priority of the ticking threads skip where it may not
 
 from __future__ import annotations
 
-import os
-
 import pytest
+
+from itasc_core.composition.realtime import ThreadPriority
 
 __all__ = ['fifo_permitted', 'needs_fifo']
 
 
 def fifo_permitted() -> bool:
-    policy = os.sched_getscheduler(0)
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
-    except PermissionError:
-        return False
-    os.sched_setscheduler(0, policy, os.sched_param(0))
-    return True
+    probe = ThreadPriority(1)
+    probe.realtime(True)
+    permitted = probe.on
+    probe.realtime(False)
+    return permitted
 
 
 #: Marks a test that needs SCHED_FIFO.
