@@ -420,6 +420,104 @@ def test_a_local_output_is_recorded_every_sample_without_a_dds_reader(context, t
     assert (recorded[7].stamp.sec, recorded[7].stamp.nanosec, recorded[7].rotation) == (0, 7_000_000, -1)
 
 
+def test_an_output_of_another_process_that_streams_it_is_recorded_every_sample_once_and_read_over_no_dds(
+        context, tmp_path):
+    """``--deploy per-composite --record`` (issue #9): a composite process records its own outputs,
+    tapped and streamed to the writer process (``sample_stream``), as the bootstrap records its own.
+    Here the other process is a ROS context of its own: its output has no DDS reader, though the
+    recorder's scans see its publisher, and every sample is in the bag, once, on one channel with
+    what the recorder registered for the same topic."""
+    import numpy as np
+    from rclpy.context import Context
+    from rclpy.task import Future
+
+    from itasc_bringup.recording import Recorder
+    from itasc_core.communication.ports import LocalBus, OutputPort, PortSpec
+    from itasc_core.communication.sample_stream import SampleStream, abstract_address
+    from itasc_core.itasc.entities.messages import FeaturesSample
+    from itasc_msgs.msg import Features
+
+    path = tmp_path / 'bag'
+    recorder = Recorder(path, prefix='/app', context=context, scan_period=0.05, elsewhere=lambda topic: False)
+    recorder.record('/app/task/relation', 'itasc_msgs/msg/Features', qos=QoSProfile(depth=10))
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(recorder)
+    other = Context()
+    rclpy.init(context=other)
+    node = rclpy.create_node('task', context=other)
+    stream = SampleStream(LocalBus.of(other), address=abstract_address(recorder.stream_address), prefix='/app')
+    relation = OutputPort(node, PortSpec(name='relation', direction='output', msg_type=Features,
+                                         id='/app/task/relation'))
+    progress = OutputPort(node, PortSpec(name='progress', direction='output', msg_type=Features,
+                                         id='/app/task/progress'))  # not known to the recorder
+    outside = OutputPort(node, PortSpec(name='x', direction='output', msg_type=Features, id='/elsewhere/x'))
+    try:
+        for k in range(50):
+            sample = FeaturesSample(k * 0.001, ('distance',), ('j1',), np.array([0.1 * k]), np.array([[1.0]]))
+            for port in (relation, progress, outside):
+                port.write(sample)
+            stream.drain()
+        assert stream.topics == {'/app/task/relation', '/app/task/progress'}
+        assert spin_until(executor, lambda: '/app/task/progress' in recorder._streamed, 5.0)
+        # the recorder's scans see both publishers, and read neither
+        assert spin_until(executor, lambda: recorder.count_publishers('/app/task/progress') == 1, 5.0)
+        executor.spin_until_future_complete(Future(), timeout_sec=0.5)  # scans
+        assert relation._dds.publisher.get_subscription_count() == 0
+        assert progress._dds.publisher.get_subscription_count() == 0
+    finally:
+        stream.close()
+        node.destroy_node()
+        rclpy.try_shutdown(context=other)
+        executor.shutdown()
+        recorder.destroy_node()
+    connections, messages = _read_all(path)
+    assert set(connections) == {'/app/task/relation', '/app/task/progress'}
+    for topic in connections:
+        recorded = [m for t, _, m in messages if t == topic]
+        assert [m.value.tolist() for m in recorded] == [[0.1 * k] for k in range(50)], topic
+
+
+def test_the_writer_waits_for_the_streams_of_processes_that_still_send_when_it_is_closed(tmp_path):
+    """The bag is finished once every stream ended (its process ends after its composite stopped),
+    not when the bootstrap closes it: what a composite process sends after that is in the bag, and
+    so is all that came before a stream was cut off in the middle of a frame (a process killed)."""
+    import socket
+    import threading
+
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    from itasc_bringup.recording.bag import qos_profiles
+    from itasc_bringup.recording.writer import BagProcess
+    from itasc_core.communication.sample_stream import FRAME, MESSAGES, FrameSender, abstract_address
+
+    bag = BagProcess(tmp_path / 'run.mcap', compression='none')
+    profiles = qos_profiles([QoSProfile(depth=10)])
+    streams = [socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) for _ in range(2)]
+    for stream in streams:
+        stream.connect(abstract_address(bag.address))
+    late, killed = (FrameSender(stream.fileno()) for stream in streams)
+    killed_key = killed.add_topic('/app/b/text', 'std_msgs/msg/String', profiles=profiles)
+    killed.write_all([(killed_key, serialize_message(String(data=f'b{k}')), 2_000 + k, 2_000 + k) for k in range(5)])
+    killed.send_waiting()
+    os.write(streams[1].fileno(), FRAME.pack(MESSAGES, 1000) + b'cut off')  # a frame never completed
+    streams[1].close()
+    closing = threading.Thread(target=bag.close)
+    closing.start()
+    time.sleep(0.5)
+    assert closing.is_alive()  # a stream is still open: the writer waits for it
+    key = late.add_topic('/app/a/text', 'std_msgs/msg/String', profiles=profiles)
+    late.write_all([(key, serialize_message(String(data=f'a{k}')), 1_000 + k, 1_000 + k) for k in range(3)])
+    assert late.finish(deadline=time.monotonic() + 5)
+    streams[0].close()
+    closing.join(timeout=10)
+    assert not closing.is_alive() and bag.failure is None
+    assert sorted(bag.streamed()) == ['/app/a/text', '/app/b/text']
+    _, messages = _read_all(tmp_path / 'run.mcap')
+    assert [(t, m.data) for t, _, m in messages] == [('/app/a/text', f'a{k}') for k in range(3)] + [
+        ('/app/b/text', f'b{k}') for k in range(5)]
+
+
 def test_an_output_that_the_deployment_puts_here_is_tapped_when_it_appears_and_never_read_over_dds(context, tmp_path):
     """The recorder starts before the hierarchy is deployed. A topic that the deployment puts in
     another process is read over DDS from the start; one whose output will be in this process
@@ -496,6 +594,49 @@ def test_a_spinning_recorded_run_sends_its_own_data_flow_over_no_dds(tmp_path):
         os.killpg(app.process.pid, signal.SIGINT)
         assert app.finish(timeout=60) == 0, app.output()
     assert readers == dict.fromkeys(readers, 0)
+
+
+def test_a_per_composite_recorded_run_has_each_composite_process_record_its_own_outputs(tmp_path):
+    """``--deploy per-composite --record``: before, the recorder in the bootstrap's process read every
+    output of the composite processes over DDS (each such process built and sent a message a tick
+    for topics nothing else reads, the bootstrap's thread took each in; at 500 Hz the Solver
+    stepped at ~250 Hz). Now each composite process records its own outputs: those nobody else
+    reads have no DDS reader, and the bag holds every one of them, each sample once."""
+    from itasc_bringup.apps import load_composition
+    from itasc_bringup.recording.topics import data_flow_topics
+    from ros_client import ros_node
+
+    bag = tmp_path / 'run'
+    unread = [f'/approach_object/itasc/{name}' for name in (
+        'ApproachObject/VKC/features', 'ApproachObject/CO/output', 'ApproachObject/CC/control',
+        'AvoidObstacle/VKC/features', 'Scene/relation_ApproachObject', 'Robot_panda/joint_state')]
+    with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--deploy', 'per-composite',
+                  '--record', str(bag)]) as app:
+        app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
+        with ros_node('observer') as (node, _):
+            time.sleep(1.5)  # the recorder's scans have long come round to every topic
+            readers = {topic: node.count_subscribers(topic) for topic in unread}
+            writers = {topic: node.count_publishers(topic) for topic in unread}
+        os.killpg(app.process.pid, signal.SIGINT)
+        assert app.finish(timeout=90) == 0, app.output()
+    assert writers == dict.fromkeys(unread, 1), writers
+    assert readers == dict.fromkeys(unread, 0), readers
+    connections, messages = _read_all(bag)
+    counts: dict[str, int] = {}
+    stamps: dict[str, list] = {}
+    for topic, _, msg in messages:
+        counts[topic] = counts.get(topic, 0) + 1
+        if hasattr(msg, 'stamp'):
+            stamps.setdefault(topic, []).append(msg.stamp.sec + 1e-9 * msg.stamp.nanosec)
+    model = data_flow_topics(load_composition('approach_object'))
+    in_tasks = [t for t in model if '/ApproachObject/' in t or '/AvoidObstacle/' in t]
+    assert not set(in_tasks) - set(counts), f'never recorded: {set(in_tasks) - set(counts)}'
+    for topic in in_tasks:  # one sample a tick of its Task: as many as its Rows/state has, each once
+        group = topic.rsplit('/', 2)[0]
+        if not topic.endswith('/rows'):  # a deactivated Task writes rows of none once more
+            assert counts[topic] == counts[f'{group}/Rows/state'] > 50, (topic, counts)
+        if topic in stamps:
+            assert all(b > a for a, b in zip(stamps[topic], stamps[topic][1:])), topic
 
 
 def test_a_recording_without_the_robots_transforms_is_named_at_the_end(context, tmp_path):

@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     from itasc_core.communication.event_names import CONFIGURE, STOP, event
     from itasc_core.communication.events import EventRaiser
     from itasc_core.composition.composer import bring_up
-    from itasc_core.composition.deployment import Runtime, make_executor, end_process_within
+    from itasc_core.composition.deployment import RecordTo, Runtime, make_executor, end_process_within
     from itasc_core.composition.model import walk
     from itasc_core.composition.realtime import ENV as PRIORITY_ENV
     from itasc_core.composition.realtime import ThreadPriority
@@ -198,6 +198,10 @@ def main(argv: list[str] | None = None) -> int:
                    if composite is not model and runtime.separate(composite))
     data_flow = data_flow_topics(model, namespace=root.namespace)
     tapped_here = {topic for topic in data_flow if not topic.startswith(remote)}
+    # a recorded run's composite processes on this machine record their own outputs (sample_stream)
+    other_hosts = tuple(f'{path}/' for path, composite in walk(model)
+                        if composite is not model and runtime.elsewhere(composite))
+    streamed = {topic for topic in data_flow if topic.startswith(remote) and not topic.startswith(other_hosts)}
 
     def elsewhere(topic: str) -> bool:
         return topic not in tapped_here
@@ -213,12 +217,14 @@ def main(argv: list[str] | None = None) -> int:
             from .recording.bag import APPLICATION_KEY, DEPLOY_KEY, CannotRecord, mcap_path_of
             from .recording.recorder import Recorder
             try:  # the model file goes into the bag: itasc-replay finds it there
-                recorder = Recorder(path=args.record, prefix=root.namespace, elsewhere=elsewhere,
+                recorder = Recorder(path=args.record, prefix=root.namespace,
+                                    elsewhere=lambda topic: elsewhere(topic) and topic not in streamed,
                                     custom_data={APPLICATION_KEY: str(resolve_app(args.app).resolve()),
                                                  DEPLOY_KEY: args.deploy})
             except CannotRecord as err:
                 print(f'error: --record: {err}', file=sys.stderr)
                 return 2
+            runtime.record_to = RecordTo(recorder.stream_address, root.namespace)
             for path, _ in walk(model):  # every event of the bring-up, not only those after discovery
                 recorder.record(f'{path}/events', 'itasc_msgs/msg/Event', qos=EVENT_QOS)
                 recorder.record(f'{path}/state', 'itasc_msgs/msg/CoordinatorState', qos=STATE_QOS)
@@ -346,6 +352,8 @@ def main(argv: list[str] | None = None) -> int:
         watch.poll(composer.timer)  # the last ticks' samples, for the summary
         console.show_safety()
         if recorder is not None:  # finished before the verdict, which says whether it is whole
+            # after the composite processes ended: what they streamed to the recording is all there
+            runtime.shutdown(orderly=coordinator.state.endswith('NotifyStopped'))
             recorder.close()
             recording_lost = recorder.failure
         lost = [] if recording_lost is None else [
@@ -379,10 +387,10 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(sig, signal.SIG_IGN)
         if console is not None:
             console.close()
-        if recorder is not None:
-            recorder.close()
         stopped = composer is not None and composer.coordinator.state.endswith('NotifyStopped')
         runtime.shutdown(orderly=stopped)  # the composite processes, each under its own deadline
+        if recorder is not None:
+            recorder.close()
         end_process_within()
         runtime.reap(wait=True)
         if composer is not None:

@@ -92,6 +92,15 @@ class Observer:
         others.append(callback)
         return True
 
+    def drop(self, topic: str) -> None:
+        """Observe ``topic`` no more (its reader, if any, is the caller's to destroy)."""
+        callback = self._wanted.pop(topic, None)
+        port = self._tapped.pop(topic, None)
+        if port is not None and callback is not None:
+            port.untap(callback)
+        self._readers.pop(topic, None)
+        self._sharing.pop(topic, None)
+
     def on_output(self, appeared: Callable[[OutputPort], None]) -> None:
         """Call ``appeared(port)`` for every output of this process: those there now and, as they
         appear, the others (before their first sample)."""

@@ -24,7 +24,9 @@ from typing import Any
 
 import yaml
 from mcap.writer import CompressionType, Writer
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
+
+from itasc_core.communication.qos import qos_profiles
 
 from .definitions import definition, type_hash
 
@@ -50,26 +52,6 @@ class CannotRecord(OSError):
 class BagExists(CannotRecord, FileExistsError):
     """The bag folder exists and is not empty, or the MCAP file exists: a recording never
     overwrites another."""
-
-
-def _duration(duration: Any) -> dict[str, int]:
-    ns = int(duration.nanoseconds)
-    return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
-
-
-def qos_profiles(profiles: Iterable[QoSProfile]) -> list[dict[str, Any]]:
-    """Offered QoS profiles as rosbag2 (metadata version 9) writes them."""
-    return [{
-        'history': HistoryPolicy(p.history).name.lower(),
-        'depth': int(p.depth),
-        'reliability': ReliabilityPolicy(p.reliability).name.lower(),
-        'durability': DurabilityPolicy(p.durability).name.lower(),
-        'deadline': _duration(p.deadline),
-        'lifespan': _duration(p.lifespan),
-        'liveliness': LivelinessPolicy(p.liveliness).name.lower(),
-        'liveliness_lease_duration': _duration(p.liveliness_lease_duration),
-        'avoid_ros_namespace_conventions': bool(p.avoid_ros_namespace_conventions),
-    } for p in profiles]
 
 
 def _dump(value: Any) -> str:

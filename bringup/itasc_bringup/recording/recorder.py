@@ -25,8 +25,12 @@ recorder through two readers is written once (:mod:`.duplicates`).
 Recording stays off the control path (issue #9). A data-flow output in this process is *tapped*
 (:mod:`..observe`): the tick hands the sample over and pays no DDS send for the recorder; the
 samples are turned into CDR bytes between ticks (:meth:`Recorder.drain`, :mod:`itasc_core.communication.cdr`: a few
-microseconds each, no ROS message built), a topic of another process is read over DDS as its raw
-bytes, and a process of its own compresses and writes the bag (:mod:`.writer`).
+microseconds each, no ROS message built), and a process of its own compresses and writes the bag
+(:mod:`.writer`). A composite process of this machine records its own outputs the same way and
+streams them to that process (:attr:`Recorder.stream_address`,
+:mod:`itasc_core.communication.sample_stream`): a topic its stream announces is read by no DDS
+reader here (``elsewhere`` leaves out those known from the model; any other is dropped when the
+writer names it). Any other topic of another process is read over DDS as its raw bytes.
 
 :meth:`Recorder.last` answers whether (and what) a topic's newest message was written, e.g. a
 composite's final state before the recording is closed.
@@ -129,6 +133,10 @@ class Recorder(Node):
         self._channels: dict[str, int] = {}
         #: topic -> the QoS each of its readers asked for
         self._readers: dict[str, list[QoSProfile]] = {}
+        #: topic -> its DDS readers
+        self._dds_readers: dict[str, list[Subscription]] = {}
+        #: topics that the processes publishing them stream to the writer
+        self._streamed: set[str] = set()
         #: topic -> its publishers when they were last matched against its readers
         self._publisher_counts: dict[str, int] = {}
         #: the topics this round of scans has yet to look at again: recorded ones (a publisher none
@@ -174,17 +182,25 @@ class Recorder(Node):
             self.record(topic, type_name, qos=DATA_QOS)
         return list(topics)
 
+    @property
+    def stream_address(self) -> str:
+        """The abstract Unix socket that a composite process streams its outputs to
+        (:class:`~itasc_core.communication.sample_stream.SampleStream`)."""
+        return self._bag.address
+
     def _scan(self) -> None:
         if self._closed:
             return
         self.drain()
+        for topic in self._bag.streamed():
+            self._recorded_by_its_process(topic)
         listed = self.get_topic_names_and_types()
         budget = QUERIES_PER_SCAN - 1
         for topic, types in listed:
             if budget <= 0:
                 break
             if topic not in self._readers and topic not in self._idle and topic not in self._skipped \
-                    and topic not in self.exclude and _under(topic, self.prefix):
+                    and topic not in self.exclude and topic not in self._streamed and _under(topic, self.prefix):
                 budget -= self._discover(topic, types)
         # a round over the recorded topics and those without a publisher, a few per scan
         tapped = self._observer.tapped
@@ -194,13 +210,22 @@ class Recorder(Node):
             topic = self._round.popleft()
             if topic in self._idle:
                 self._idle.discard(topic)  # looked at again by the next scan's discovery
-            elif self._readers.get(topic) and topic not in tapped:  # read over DDS
+            elif self._readers.get(topic) and topic not in tapped and topic not in self._streamed:  # read over DDS
                 budget -= self._match_new_publishers(topic)
         if time.monotonic() - self._last_flush >= self._flush_period:
             self._last_flush = time.monotonic()
             with self._lock:
                 if not self._closed:
                     self._bag.flush()
+
+    def _recorded_by_its_process(self, topic: str) -> None:
+        """``topic`` comes down a stream from the process that publishes it: no DDS reader here."""
+        self._streamed.add(topic)
+        self._observer.drop(topic)
+        for subscription in self._dds_readers.pop(topic, []):
+            self.destroy_subscription(subscription)
+        if topic in self._readers:
+            self._readers[topic] = []
 
     def drain(self) -> None:
         """Write the samples tapped since the last call (call it between ticks: a few
@@ -302,6 +327,7 @@ class Recorder(Node):
         readers = self._readers[topic]
         callback = functools.partial(self._received, topic, self._channels[topic], len(readers))
         subscription = self.create_subscription(self._classes[topic], topic, callback, qos, raw=True)
+        self._dds_readers.setdefault(topic, []).append(subscription)
         # the callback takes the message info too (its signature alone can't say so: see _received)
         subscription._callback_type = Subscription.CallbackType.WithMessageInfo
         readers.append(qos)

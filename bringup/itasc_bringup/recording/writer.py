@@ -22,21 +22,24 @@ takes what the pipe holds every :data:`POLL` seconds instead. ``approach_object`
 ``--record``, two runs each, the control thread's writes of a batch: p50 47-53 -> 27-32 us, p99
 328-346 -> 106-175 us, the longest 1.3-2.7 -> 0.3-0.45 ms.
 
-Frames on the pipe: a header ``<BI`` (kind, payload length), then the payload: ``TOPIC`` (pickled
-``(key, topic, type_name, qos profiles as rosbag2 writes them)``), ``MESSAGES`` (records ``<IqqI``
-key, log time, publish time, length, then the CDR bytes), ``FLUSH``, ``CLOSE``.
+The composite processes of this machine record their own outputs (``--deploy per-composite``,
+:mod:`itasc_core.communication.sample_stream`): :class:`BagProcess` listens on an abstract Unix socket
+(:attr:`BagProcess.address`) that they connect to, the writer process takes their frames as it takes
+the pipe's (the same frames; one channel per topic, whoever announces it) and names every topic that
+comes that way on its standard output, one line each, for the recorder (:meth:`BagProcess.streamed`),
+which then reads none of them over DDS. Told to close, it takes what the streams still send until
+each has ended (their processes end after their composite stopped), :data:`STREAMS_LINGER` at most.
 """
 
 from __future__ import annotations
 
 import argparse
-import collections
 import fcntl
 import os
 import pickle
-import select
+import secrets
 import signal
-import struct
+import socket
 import subprocess
 import sys
 import time
@@ -44,19 +47,19 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from itasc_core.communication.sample_stream import (CLOSE, FLUSH, FRAME, MESSAGES, RECORD, TOPIC, FrameSender,
+                                                    abstract_address)
+
 __all__ = ['BagProcess', 'main']
 
-TOPIC, MESSAGES, FLUSH, CLOSE = 1, 2, 3, 4
-_FRAME = struct.Struct('<BI')
-_RECORD = struct.Struct('<IqqI')
-#: Messages are sent once this many bytes are waiting (or on flush).
-BATCH = 1 << 16
 #: The pipe's size asked for [bytes] (Linux allows up to /proc/sys/fs/pipe-max-size, 1 MiB by default).
 PIPE_SIZE = 1 << 20
 #: The writer flushes the file at least this often [s] (``mcap recover`` salvages what was flushed).
 FLUSH_PERIOD = 1.0
-#: The writer takes what the pipe holds this often [s].
+#: The writer takes what the pipe and the streams hold this often [s].
 POLL = 0.01
+#: Told to close, the writer waits this long at most for the streams to end [s].
+STREAMS_LINGER = 5.0
 #: The writer process's program (not ``-m``: the package imports this module before runpy would run it).
 _MAIN = 'import sys; from itasc_bringup.recording.writer import main; sys.exit(main(sys.argv[1:]))'
 
@@ -70,42 +73,53 @@ class BagProcess:
         from .bag import prepare_recording
         prepare_recording(Path(path))  # BagExists or CannotRecord here, before anything starts
         custom = [arg for key, value in (custom_data or {}).items() for arg in ('--custom-data', f'{key}={value}')]
-        self._process = subprocess.Popen(
-            [sys.executable, '-c', _MAIN, os.fspath(path), '--prepared', '--compression', compression,
-             '--library', library, *custom], stdin=subprocess.PIPE, start_new_session=True)
-        self._fd = self._process.stdin.fileno()
+        #: the name of the abstract Unix socket the composite processes stream their outputs to
+        self.address = f'itasc-recording-{os.getpid()}-{secrets.token_hex(6)}'
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as listening:
+            listening.bind(abstract_address(self.address))
+            listening.listen(64)  # connections wait here until the writer process takes them
+            self._process = subprocess.Popen(
+                [sys.executable, '-c', _MAIN, os.fspath(path), '--prepared', '--compression', compression,
+                 '--library', library, '--listen-fd', str(listening.fileno()), *custom],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(listening.fileno(),),
+                start_new_session=True)
+        fd = self._process.stdin.fileno()
         try:  # room for a few batches: the writer catches up between them
-            fcntl.fcntl(self._fd, fcntl.F_SETPIPE_SZ, PIPE_SIZE)
+            fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, PIPE_SIZE)
         except OSError:  # above /proc/sys/fs/pipe-max-size: the default (64 KiB) does
             pass
-        os.set_blocking(self._fd, False)
-        #: frames not (wholly) in the pipe yet, the first maybe in part
-        self._unsent: collections.deque[memoryview] = collections.deque()
-        self._pending = bytearray()
-        self._keys = 0
-        self._broken = False
+        self._sender = FrameSender(fd)
+        self._told = self._process.stdout.fileno()
+        os.set_blocking(self._told, False)
+        self._told_buffer = b''
+        self._names: list[str] = []
         self.closed = False
 
     def add_topic(self, topic: str, type_name: str, *, profiles: list[dict[str, Any]]) -> int:
         """Register ``topic`` (its QoS profiles as :func:`~.bag.qos_profiles` gives them); returns its key."""
-        self._keys += 1
-        self._flush_pending()
-        self._send(self._frame(TOPIC, pickle.dumps((self._keys, topic, type_name, profiles))))
-        return self._keys
+        return self._sender.add_topic(topic, type_name, profiles=profiles)
 
     def write(self, key: int, data: bytes, *, time_ns: int, publish_time_ns: int | None = None) -> None:
         self.write_all([(key, data, time_ns, time_ns if publish_time_ns is None else publish_time_ns)])
 
     def write_all(self, records: Iterable[tuple[int, bytes, int, int]]) -> None:
         """Write each ``(key, data, time_ns, publish_time_ns)`` (a tick's samples at once)."""
-        pending, pack = self._pending, _RECORD.pack
-        for key, data, time_ns, publish_time_ns in records:
-            pending += pack(key, time_ns, publish_time_ns, len(data))
-            pending += data
-        if len(pending) >= BATCH:
-            self._flush_pending()
-        elif self._unsent:
-            self._send_what_fits()
+        self._sender.write_all(records)
+
+    def streamed(self) -> list[str]:
+        """The topics that the composite processes' streams announced since the last call."""
+        if not self.closed:
+            self._hear()
+        names, self._names = self._names, []
+        return names
+
+    def _hear(self) -> None:
+        try:
+            chunk = os.read(self._told, 1 << 16)
+        except OSError:  # nothing yet (BlockingIOError), or the writer is gone
+            return
+        *lines, self._told_buffer = (self._told_buffer + chunk).split(b'\n')
+        self._names += [line.decode() for line in lines]
 
     @property
     def failure(self) -> str | None:
@@ -113,7 +127,7 @@ class BagProcess:
         None while it is not."""
         code = self._process.poll()
         if code is None:
-            return 'the recording process does not take what is recorded' if self._broken else None
+            return 'the recording process does not take what is recorded' if self._sender.broken else None
         if code == 0 and self.closed:
             return None
         how = f'was killed (signal {-code})' if code < 0 else f'failed (exit code {code})' if code else 'ended'
@@ -122,24 +136,20 @@ class BagProcess:
     @property
     def unsent(self) -> int:
         """Bytes handed over that the pipe has not taken yet."""
-        return len(self._pending) + sum(len(frame) for frame in self._unsent)
+        return self._sender.unsent
 
     def flush(self) -> None:
         """Send what waits, and have the writer flush the file."""
-        self._flush_pending()
-        self._send(self._frame(FLUSH, b''))
+        self._sender.send(FLUSH)
 
     def close(self, *, timeout: float = 30.0) -> None:
         """Send what waits, have the writer finish the bag, and wait until it did."""
         if self.closed:
             return
         self.closed = True
-        self._flush_pending()
-        self._send(self._frame(CLOSE, b''))
         deadline = time.monotonic() + timeout
-        while self._unsent and not self._broken and time.monotonic() < deadline:
-            select.select([], [self._fd], [], max(0.0, deadline - time.monotonic()))
-            self._send_what_fits()
+        self._sender.send(CLOSE)
+        self._sender.finish(deadline=deadline)
         try:
             self._process.stdin.close()
         except OSError:
@@ -149,76 +159,58 @@ class BagProcess:
         except subprocess.TimeoutExpired:
             self._process.kill()
             self._process.wait()
+        self._hear()  # the names it told last
+        self._process.stdout.close()
 
-    def _flush_pending(self) -> None:
-        if self._pending:
-            self._send(self._frame(MESSAGES, bytes(self._pending)))
-            self._pending.clear()
 
-    def _send(self, frame: bytes) -> None:
-        self._unsent.append(memoryview(frame))
-        self._send_what_fits()
+class _Frames:
+    """The frames coming on one file descriptor (the pipe, a stream's socket), read without ever
+    blocking in a read (see the module docstring); ``keys``: the stream's topic keys -> channels."""
 
-    def _send_what_fits(self) -> None:
-        unsent = self._unsent
-        while unsent and not self._broken:
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        os.set_blocking(fd, False)
+        self.keys: dict[int, int] = {}
+        self.ended = False
+        self._buffer = bytearray()
+
+    def take(self) -> list[tuple[int, bytes]]:
+        """The whole frames that came since the last call; ``ended`` once the other side closed."""
+        buffer = self._buffer
+        while not self.ended:
             try:
-                written = os.write(self._fd, unsent[0])
-            except BlockingIOError:  # the pipe is full: the next call goes on
-                return
-            except InterruptedError:
-                continue
-            except BrokenPipeError:  # the writer is gone: nothing more can be recorded
-                self._broken = True
-                unsent.clear()
-                return
-            if written == len(unsent[0]):
-                unsent.popleft()
-            else:
-                unsent[0] = unsent[0][written:]
-
-    @staticmethod
-    def _frame(kind: int, payload: bytes) -> bytes:
-        return _FRAME.pack(kind, len(payload)) + payload
-
-
-def _frames(fd: int, *, poll: float = POLL) -> Iterable[tuple[int, bytes]]:
-    """The frames on ``fd`` until it ends, read without ever blocking in a read: what the pipe
-    holds is taken every ``poll`` seconds (see the module docstring)."""
-    os.set_blocking(fd, False)
-    buffer = bytearray()
-    offset = 0
-    while True:
-        try:
-            chunk = os.read(fd, PIPE_SIZE)
-        except BlockingIOError:
-            time.sleep(poll)
-            continue
-        if not chunk:
-            return
-        buffer += chunk
-        while len(buffer) - offset >= _FRAME.size:
-            kind, size = _FRAME.unpack_from(buffer, offset)
-            end = offset + _FRAME.size + size
+                chunk = os.read(self.fd, PIPE_SIZE)
+            except BlockingIOError:
+                break
+            except ConnectionResetError:
+                chunk = b''
+            if not chunk:
+                self.ended = True  # a frame cut off by the end (a process killed while sending) is dropped
+            buffer += chunk
+        frames, offset = [], 0
+        while len(buffer) - offset >= FRAME.size:
+            kind, size = FRAME.unpack_from(buffer, offset)
+            end = offset + FRAME.size + size
             if end > len(buffer):
                 break
-            yield kind, bytes(buffer[offset + _FRAME.size:end])
+            frames.append((kind, bytes(buffer[offset + FRAME.size:end])))
             offset = end
         del buffer[:offset]
-        offset = 0
+        return frames
 
 
 def _records(payload: bytes) -> Iterable[tuple[int, int, int, bytes]]:
     offset = 0
     while offset < len(payload):
-        key, log_ns, publish_ns, size = _RECORD.unpack_from(payload, offset)
-        offset += _RECORD.size
+        key, log_ns, publish_ns, size = RECORD.unpack_from(payload, offset)
+        offset += RECORD.size
         yield key, log_ns, publish_ns, payload[offset:offset + size]
         offset += size
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``main([PATH, ...])``: write the frames on stdin into the bag PATH (the writer process)."""
+    """``main([PATH, ...])``: write the frames on stdin (and on the streams that connect to the
+    socket ``--listen-fd``) into the bag PATH (the writer process)."""
     from .bag import BagWriter
 
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -227,8 +219,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--compression', default='zstd')
     parser.add_argument('--library', default='itasc_bringup')
     parser.add_argument('--custom-data', action='append', default=[], metavar='KEY=VALUE')
+    parser.add_argument('--listen-fd', type=int, default=None, help='a listening socket the streams connect to')
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the recording process closes the bag, or its end does
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)  # a recorder gone: its end, not ours
+    os.set_blocking(sys.stdout.fileno(), False)  # a recorder that does not read the names never stalls this one
+    listening = None if args.listen_fd is None else socket.socket(fileno=args.listen_fd)
     try:
         bag = BagWriter(args.path, compression=args.compression, library=args.library, prepared=args.prepared,
                         custom_data=dict(item.split('=', 1) for item in args.custom_data))
@@ -237,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     failure: OSError | None = None
     try:
-        _write(bag, sys.stdin.fileno())
+        _write(bag, sys.stdin.fileno(), listening=listening)
     except OSError as err:  # the disk full, the file system gone: what was flushed before stays
         failure = err
     try:
@@ -251,22 +247,68 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _write(bag, fd: int) -> None:
-    """Write the frames on ``fd`` into ``bag`` until the pipe ends or says CLOSE."""
-    channels: dict[int, int] = {}
+def _write(bag, fd: int, *, listening: socket.socket | None) -> None:
+    """Write the frames on ``fd`` and on the streams ``listening`` takes into ``bag`` until the pipe
+    ends or says CLOSE, and the streams have ended (:data:`STREAMS_LINGER` at most after that)."""
+    pipe = _Frames(fd)
+    streams: list[_Frames] = []
+    channels: dict[str, int] = {}  # topic -> its channel, whoever announced it
     flushed = time.monotonic()
-    for kind, payload in _frames(fd):
-        if kind == TOPIC:
-            key, topic, type_name, profiles = pickle.loads(payload)
-            channels[key] = bag.add_topic(topic, type_name, profiles=profiles)
-        elif kind == MESSAGES:
-            for key, log_ns, publish_ns, data in _records(payload):
-                bag.write(channels[key], data, time_ns=log_ns, publish_time_ns=publish_ns)
-        elif kind == CLOSE:
-            return
-        if kind == FLUSH or time.monotonic() - flushed > FLUSH_PERIOD:
+    closing_at: float | None = None
+    if listening is not None:
+        listening.setblocking(False)
+    while True:
+        if listening is not None:
+            try:
+                while True:
+                    connection, _ = listening.accept()
+                    streams.append(_Frames(connection.detach()))
+            except (BlockingIOError, InterruptedError):
+                pass
+        took = False
+        for source in ([pipe] if closing_at is None else []) + streams:
+            for kind, payload in source.take():
+                took = True
+                if kind == TOPIC:
+                    key, topic, type_name, profiles = pickle.loads(payload)
+                    channel = channels.get(topic)
+                    if channel is None:
+                        channel = channels[topic] = bag.add_topic(topic, type_name, profiles=profiles)
+                    source.keys[key] = channel
+                    if source is not pipe:
+                        _tell(topic)
+                elif kind == MESSAGES:
+                    for key, log_ns, publish_ns, data in _records(payload):
+                        bag.write(source.keys[key], data, time_ns=log_ns, publish_time_ns=publish_ns)
+                elif kind == CLOSE and source is pipe:
+                    closing_at = time.monotonic()
+                if kind == FLUSH:
+                    bag.flush()
+                    flushed = time.monotonic()
+        for stream in [s for s in streams if s.ended]:
+            os.close(stream.fd)
+            streams.remove(stream)
+        if closing_at is None and pipe.ended:  # the recording process is gone, however it ended
+            closing_at = time.monotonic()
+        if closing_at is not None:
+            if listening is not None:
+                listening.close()
+                listening = None
+            if not streams or time.monotonic() - closing_at > STREAMS_LINGER:
+                return
+        if time.monotonic() - flushed > FLUSH_PERIOD:
             bag.flush()
             flushed = time.monotonic()
+        if not took:
+            time.sleep(POLL)
+
+
+def _tell(topic: str) -> None:
+    """Name a streamed topic to the recorder (a line on stdout); a recorder gone is no failure."""
+    try:
+        os.write(sys.stdout.fileno(), f'{topic}\n'.encode())
+    except OSError:
+        pass
 
 
 if __name__ == '__main__':

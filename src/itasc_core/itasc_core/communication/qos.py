@@ -5,12 +5,18 @@ they travel reliably with a deep history. Data flow is offered reliably with a s
 recorder wants every sample it can get) and read best effort between composites: a controller
 wants the newest sample. What comes from another program (a driver's joint states, a pose, a
 setpoint topic) is read best effort, so that any publisher matches.
+
+:func:`qos_profiles` writes offered profiles down as a rosbag2 bag keeps them (its metadata and
+MCAP channels), for a recording written from several processes (:mod:`.sample_stream`).
 """
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from collections.abc import Iterable
+from typing import Any
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
 
 __all__ = ['EVENT_DEPTH', 'EVENT_QOS', 'EVENT_LISTENER_QOS', 'DATA_QOS', 'DATA_READER_QOS', 'OUTSIDE_QOS',
-           'STATE_QOS']
+           'STATE_QOS', 'qos_profiles']
 
 #: How many events a writer keeps and a reader holds untaken: a whole storm of issue #8 (10,000
 #: events/s for 10 s). The queues are the buffer of paper §7.2: a reader whose process falls
@@ -85,3 +91,23 @@ STATE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+
+
+def _duration(duration: Any) -> dict[str, int]:
+    ns = int(duration.nanoseconds)
+    return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
+
+
+def qos_profiles(profiles: Iterable[QoSProfile]) -> list[dict[str, Any]]:
+    """Offered QoS profiles as rosbag2 (metadata version 9) writes them."""
+    return [{
+        'history': HistoryPolicy(p.history).name.lower(),
+        'depth': int(p.depth),
+        'reliability': ReliabilityPolicy(p.reliability).name.lower(),
+        'durability': DurabilityPolicy(p.durability).name.lower(),
+        'deadline': _duration(p.deadline),
+        'lifespan': _duration(p.lifespan),
+        'liveliness': LivelinessPolicy(p.liveliness).name.lower(),
+        'liveliness_lease_duration': _duration(p.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(p.avoid_ros_namespace_conventions),
+    } for p in profiles]

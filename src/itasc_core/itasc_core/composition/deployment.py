@@ -14,7 +14,8 @@ of the executor and no longer listen to events. Nodes built for a run-time re-co
 built off the tick path too (:meth:`Runtime.off_tick`), and the result handed back to the
 executor's thread (:meth:`Runtime.post`). The process's entities share one reader per event topic
 (:class:`~..communication.event_hub.EventHub`) and hand data to each other's ports in-process
-(:class:`~..communication.ports.LocalBus`).
+(:class:`~..communication.ports.LocalBus`). A recorded run's composite processes on this machine
+stream their outputs to the recording themselves (``record_to``, :mod:`..communication.sample_stream`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import subprocess
 import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable, Iterable, Literal
+from typing import Callable, Iterable, Literal, NamedTuple
 
 from rclpy.node import Node
 
@@ -38,9 +39,17 @@ from .model import CompositeModel
 from .remote import HostClient, RemoteProcess
 from .zygote import HOST_COMMAND, ForkedProcess, Zygote
 
-__all__ = ['Runtime', 'DeployMode', 'make_executor', 'end_process_within', 'exit_reason']
+__all__ = ['Runtime', 'DeployMode', 'RecordTo', 'make_executor', 'end_process_within', 'exit_reason']
 
 DeployMode = Literal['single', 'per-composite']
+
+
+class RecordTo(NamedTuple):
+    """Where a recorded run's composite processes stream their outputs: the writer's abstract Unix
+    socket ``address``, every output under ``prefix``."""
+
+    address: str
+    prefix: str
 
 
 def make_executor(context=None):
@@ -78,8 +87,12 @@ class Runtime:
     """The executor of this process, the nodes on it and the composite processes it started."""
 
     def __init__(self, *, executor, mode: DeployMode = 'single', host: str | None = None,
-                 namespace: str = '/', background: bool = False, zygote: Zygote | None = None) -> None:
+                 namespace: str = '/', background: bool = False, zygote: Zygote | None = None,
+                 record_to: RecordTo | None = None) -> None:
         self.executor = executor
+        #: Where the composite processes started on this machine stream their outputs, when the run
+        #: is recorded (:mod:`..communication.sample_stream`); None: not recorded, or not that way.
+        self.record_to = record_to
         #: Forks the composite processes started here (:mod:`.zygote`); None: new interpreters.
         self.zygote = zygote
         self.mode: DeployMode = mode
@@ -178,6 +191,8 @@ class Runtime:
         self._spec_files.append(path)
         argv = ['--spec', path, '--namespace', namespace, '--parent-namespace', parent_namespace,
                 '--parent-pid', str(os.getpid())]
+        if self.record_to is not None:
+            argv += ['--record-to', self.record_to.address, '--record-prefix', self.record_to.prefix]
         self._processes[namespace] = (self.zygote.start(argv) if self.zygote is not None
                                       else subprocess.Popen([*HOST_COMMAND, *argv]))
 

@@ -6,7 +6,9 @@ Configurator, then lets the life-cycle run. Its Scheduler is triggered over the 
 topic; while the composite runs, the thread that waits for the triggers and ticks has a real-time
 priority where permitted (:mod:`.realtime`). The process ends after its Coordinator notified the
 parent that it stopped (exit 0), or when the parent process is gone (exit 1): a composite whose
-parent died can never be stopped in order, and must not outlive it. SIGINT and SIGTERM are ignored:
+parent died can never be stopped in order, and must not outlive it. A recorded run's composite
+process streams its outputs to the recording (``--record-to``, :mod:`..communication.sample_stream`),
+and so do the composite processes it starts. SIGINT and SIGTERM are ignored:
 a terminal's Ctrl-C and a process manager's stop reach every process of the application, and the
 bootstrap answers them with an orderly Stop of the whole hierarchy, which this process must stay
 alive to take part in. Its parent ends it with SIGKILL when it cannot stop in order.
@@ -25,12 +27,14 @@ import time
 from typing import Callable
 
 import rclpy
+import rclpy.logging
 from rclpy.signals import SignalHandlerOptions
 
 from ..communication.dds import configure_dds, send_from_a_dds_thread
+from ..communication.sample_stream import SampleStream, abstract_address
 from ..entity import CompositeContext
 from .composer import bring_up
-from .deployment import Runtime, make_executor, end_process_within
+from .deployment import RecordTo, Runtime, make_executor, end_process_within
 from .realtime import ThreadPriority, priority_from_env
 from .zygote import zygote_for
 from .model import CompositeModel
@@ -58,12 +62,27 @@ def _ticks(state: str) -> bool:
     return state.startswith(('Active.Run', 'Safety'))
 
 
+def _stream(runtime: Runtime, record_to: RecordTo) -> SampleStream | None:
+    """The stream of this process's outputs to the recording, None (said) when its writer cannot be reached."""
+    logger = rclpy.logging.get_logger('recording')
+    try:
+        return SampleStream(runtime.bus, address=abstract_address(record_to.address), prefix=record_to.prefix,
+                            on_broken=lambda: logger.error('the recording process is gone: the outputs of this '
+                                                           'process are recorded no more'))
+    except OSError as err:
+        logger.error(f'the recording process cannot be reached ({err}): the outputs of this process are not recorded')
+        return None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument('--spec', required=True)
     parser.add_argument('--namespace', required=True)
     parser.add_argument('--parent-namespace', required=True)
     parser.add_argument('--parent-pid', type=int, required=True)
+    parser.add_argument('--record-to', metavar='ADDRESS', default=None,
+                        help="the recording writer's abstract Unix socket: stream this process's outputs there")
+    parser.add_argument('--record-prefix', default='/', help='... those under this namespace')
     args = parser.parse_args(argv)
     with open(args.spec) as spec:
         model = CompositeModel.model_validate(json.load(spec))
@@ -79,9 +98,11 @@ def main(argv: list[str] | None = None) -> int:
     zygote = zygote_for(model)  # before DDS starts threads
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     executor = make_executor()
+    record_to = None if args.record_to is None else RecordTo(args.record_to, args.record_prefix)
     runtime = Runtime(executor=executor, mode='per-composite', namespace=args.namespace, background=True,
-                      zygote=zygote)
+                      zygote=zygote, record_to=record_to)
     orphaned = parent_gone(args.parent_pid)
+    stream = None if record_to is None else _stream(runtime, record_to)  # before the first output exists
     composer = bring_up(model=model, context=context, runtime=runtime, remote_trigger=True)
     priority = ThreadPriority(priority_from_env(), refused=composer.get_logger().info)
     stopped_at = None
@@ -89,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         while True:
             executor.spin_once(timeout_sec=CHECK_PERIOD)
+            if stream is not None:
+                stream.drain()  # the samples of the tick that just ran
             runtime.reap()
             now = time.monotonic()
             if now - looked_at < CHECK_PERIOD:
@@ -104,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
                 break
     finally:
         priority.realtime(False)
+        if stream is not None:
+            stream.close()
         runtime.shutdown(orderly=stopped_at is not None)
         end_process_within()
         runtime.reap(wait=True)
