@@ -826,3 +826,27 @@ def test_a_condition_that_answers_neither_true_nor_false_is_an_error_not_a_yes(w
     with pytest.raises(TypeError, match=f"condition 'above' of far answered {re.escape(repr(answer))}, not True"):
         monitor.update(0.0)
     assert monitor.raised == 0
+
+
+def test_a_task_commanded_to_stop_holds_the_robot_still_and_is_no_fault_to_say(world, capfd):
+    """At the end of a per-composite run the program's Coordinator stops its Tasks (``e_<task>_stop``)
+    while its Scheduler still ticks the Solver: their rows stop coming. The Solver holds the robot
+    still, as for any Task whose rows stop coming (it never drops, say, an avoidance constraint), but
+    it also said "the rows of B are older than remote_rows_age (0.1 s): the robot holds still until
+    they come" after most stops, a fault that was none. A Task's composite that this process
+    commanded to stop (:meth:`LocalBus.set_stopping`) holds the robot still without a word; once
+    started anew, it is said again."""
+    solver, port, a, b = _two_tasks_elsewhere(world)
+    bus = LocalBus.of(solver.context)
+    bus.set_stopping('/elsewhere/B', True)
+    for k in range(2, 12):  # A computes every tick, B stopped: its rows of 1.0 are too old at 1.11
+        port.deliver(as_sample(_joint_rows('A', 1.0 + (k - 1) * DT, 0, 0.3)), a)
+        solver.update(1.0 + k * DT)
+    assert solver.outputs['command'].last.velocity == pytest.approx([0.0] * 7, abs=1e-9)
+    assert list(solver.outputs['status'].last.active_tasks) == []
+    assert 'older than remote_rows_age' not in capfd.readouterr().err
+    bus.set_stopping('/elsewhere/B', False)
+    port.deliver(as_sample(_joint_rows('A', 1.11, 0, 0.3)), a)
+    solver.update(1.12)
+    assert solver.outputs['command'].last.velocity == pytest.approx([0.0] * 7, abs=1e-9)
+    assert 'the rows of B are older than remote_rows_age (0.1 s): the robot holds still' in capfd.readouterr().err

@@ -130,6 +130,9 @@ class LocalBus:
         self._carried: set[str] = set()
         #: Namespaces of the composites switched off (their readers do not count as listening).
         self.idle: frozenset[str] = frozenset()
+        #: Namespaces of the composites in other processes that this process commanded to stop: what
+        #: they wrote stops coming on purpose.
+        self.stopping: frozenset[str] = frozenset()
 
     @classmethod
     def of(cls, context: Context) -> 'LocalBus':
@@ -164,6 +167,10 @@ class LocalBus:
             self.idle = changed
             for port in self._outputs.values():
                 port.recheck()
+
+    def set_stopping(self, namespace: str, stopping: bool) -> None:
+        """The composite of ``namespace``, in another process, was commanded to stop (or started anew)."""
+        self.stopping = self.stopping | {namespace} if stopping else self.stopping - {namespace}
 
     def replace(self, port: 'OutputPort') -> None:
         """Register ``port`` in place of the output of its topic, whose in-process links and taps it
@@ -484,6 +491,11 @@ class InputPort:
         """Whether ``topic`` is read over DDS from a composite that this process has switched off
         (:meth:`LocalBus.set_idle`): what came from there was written before, and holds no more."""
         return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.idle)
+
+    def stopping(self, topic: str) -> bool:
+        """Whether ``topic`` is read over DDS from a composite that this process commanded to stop
+        (:meth:`LocalBus.set_stopping`): its samples stop coming on purpose."""
+        return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.stopping)
 
     def deliver(self, msg: Any, topic: str, now: float | None = None) -> None:
         """Take a sample (or its ROS message, turned into the sample) from ``topic``, arrived

@@ -167,6 +167,8 @@ class Composer(Entity):
             with self._lock:
                 self._stop_commanded.add(child)
                 dead = child in self._dead
+            if self.children[child] is None:  # in another process: what it writes stops coming now
+                LocalBus.of(self.context).set_stopping(self.composite.child(child).namespace, True)
             if dead:
                 self.raise_event(event(child, STOPPED), detail='its process had died')
             return
@@ -351,6 +353,7 @@ class Composer(Entity):
             *self.get_subscriptions_info_by_topic(topic), *self.get_publishers_info_by_topic(topic))}
         self.runtime.spawn(model=entity, namespace=context.namespace, parent_namespace=self.composite.namespace)
         self.children[entity.name] = None
+        LocalBus.of(self.context).set_stopping(context.namespace, False)
         process = self.runtime.process(context.namespace)
         threading.Thread(target=self._watch, args=(entity.name, process), daemon=True,
                          name=f'watch {entity.name}').start()

@@ -18,8 +18,8 @@ in common, it solves again with the rows it last combined while those count, and
 A Task the Coordinator deactivated writes rows of none and drops out at once. A Task in another
 process whose rows stop coming (its process stalled, or died) does not drop out: once its newest
 rows are older than ``remote_rows_age`` the Solver holds still until they come again (and says so
-in its log), since a problem without them is not the program's: the constraint that vanished
-might be an obstacle's distance. A dead process's composite is noticed by its parent, which goes to
+in its log, unless this process commanded that Task's composite to stop), since a problem without
+them is not the program's: the constraint that vanished might be an obstacle's distance. A dead process's composite is noticed by its parent, which goes to
 Safety (paper §6). It solves the prioritised problem with the
 configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
 squares with null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers)
@@ -197,12 +197,14 @@ class SolverEntity(FunctionalEntity):
                     if sample.t >= (remote_fresh if topic in port.remote else fresh) and not port.switched_off(topic)}
         if not port.remote:
             return [self._problem_rows(sample) for sample in counting.values() if sample.rows]
-        late = [sample.task for topic, sample in port.samples.items()
+        late = [topic for topic, sample in port.samples.items()
                 if sample.rows and topic in port.remote and topic not in counting and not port.switched_off(topic)]
-        if late != self._late and late:
-            self.get_logger().warning(f'the rows of {", ".join(sorted(late))} are older than remote_rows_age '
+        # a Task commanded to stop holds the robot still too, but that is the stop, not a fault to say
+        unexpected = sorted(port.samples[topic].task for topic in late if not port.stopping(topic))
+        if unexpected != self._late and unexpected:
+            self.get_logger().warning(f'the rows of {", ".join(unexpected)} are older than remote_rows_age '
                                       f'({self.remote_rows_age:g} s): the robot holds still until they come')
-        self._late = late
+        self._late = unexpected
         if late:
             self._combined = -math.inf, {}
             return []
