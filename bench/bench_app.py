@@ -284,7 +284,7 @@ def report(args: argparse.Namespace) -> None:
     info = machine()
     print(f"machine: {info['cpu']}, {info['cores']} cores; {info['versions']}; load {_load():.2f}", flush=True)
     results: dict = {'machine': info, 'rates': [], 'record': None, 'per_composite': None,
-                     'tasks': [], 'dof': [], 'reaction': None}
+                     'per_composite_record': None, 'tasks': [], 'dof': [], 'reaction': None}
 
     def run(what: str, into: list | None = None, extra: dict | None = None, **kwargs) -> dict | None:
         r = _attempt(what, measure, **kwargs)
@@ -300,6 +300,8 @@ def report(args: argparse.Namespace) -> None:
     results['record'] = run('single 1000 Hz --record', app=args.app, rate=1000.0, seconds=args.seconds, record=True)
     results['per_composite'] = run('per-composite 500 Hz', app=args.app, rate=500.0, seconds=args.seconds,
                                    deploy='per-composite', baseline=False)
+    results['per_composite_record'] = run('per-composite 500 Hz --record', app=args.app, rate=500.0,
+                                          seconds=args.seconds, deploy='per-composite', record=True, baseline=False)
     with tempfile.TemporaryDirectory(prefix='bench_scale_') as tmp:
         for n in (1, 5, 10, 20, 50):
             run(f'{n} tasks', results['tasks'], {'tasks': n}, app=str(scaling_app(pathlib.Path(tmp), tasks=n)),

@@ -84,9 +84,11 @@ def write_results(results: dict, *, markdown: pathlib.Path, picture: pathlib.Pat
         lines.append(_row(f"{r['rate_hz']:g} Hz", r))
     if results.get('record'):
         lines.append(_row(f"{results['record']['rate_hz']:g} Hz `--record`", results['record']))
-    if results.get('per_composite'):
-        r = results['per_composite']
-        lines += ['', '## approach_object, `--deploy per-composite`', '', HEADER, _row(f"{r['rate_hz']:g} Hz", r)]
+    per_composite = [(f"{r['rate_hz']:g} Hz{label}", r) for label, r in (
+        ('', results.get('per_composite')), (' `--record`', results.get('per_composite_record'))) if r]
+    if per_composite:
+        lines += ['', '## approach_object, `--deploy per-composite`', '', HEADER]
+        lines += [_row(what, r) for what, r in per_composite]
     if results.get('tasks'):
         lines += ['', f"## Number of Tasks (Panda, 7 DOF, {results['tasks'][0]['rate_hz']:g} Hz)", '', HEADER]
         lines += [_row(f"{r['tasks']} Tasks", r) for r in results['tasks']]
