@@ -19,7 +19,8 @@ def _run(*, rate: float = 100.0, tasks: int | None = None, up: float = 0.5) -> d
 def test_the_report_lists_each_program_size_and_the_bring_up_each_added_task_cost(tmp_path):
     results = {'machine': {'date': '2026-11-29T02:46', 'cpu': 'AMD EPYC', 'cores': 2, 'versions': {'python': '3.12'}},
                'rates': [_run(rate=100.0), _run(rate=1000.0)], 'record': None, 'per_composite': None,
-               'per_composite_record': None, 'tasks': [_run(tasks=1, up=0.5), _run(tasks=5, up=0.9), _run(tasks=10, up=1.4)],
+               'per_composite_record': None,
+               'tasks': [_run(tasks=1, up=0.5), _run(tasks=5, up=0.9), _run(tasks=10, up=1.4)],
                'dof': [], 'reaction': None}
     markdown, picture = tmp_path / 'RESULTS.md', tmp_path / 'results.png'
     write_results(results, markdown=markdown, picture=picture)

@@ -19,11 +19,11 @@ A Task the Coordinator deactivated writes rows of none and drops out at once. A 
 process whose rows stop coming (its process stalled, or died) does not drop out: once its newest
 rows are older than ``remote_rows_age`` the Solver holds still until they come again (and says so
 in its log, unless this process commanded that Task's composite to stop), since a problem without
-them is not the program's: the constraint that vanished might be an obstacle's distance. A dead process's composite is noticed by its parent, which goes to
-Safety (paper §6). It solves the prioritised problem with the
-configured solver (a registered Solver kind, :mod:`..solver.kind`: ``wdls``, weighted damped least
-squares with null-space priorities; ``qp``, a cascade of QPs with inequalities through qpsolvers)
-within the joint position and velocity limits, and writes
+them is not the program's: the constraint that vanished might be an obstacle's distance. A dead
+process's composite is noticed by its parent, which goes to Safety (paper §6). It solves the
+prioritised problem with the configured solver (a registered Solver kind, :mod:`..solver.kind`:
+``wdls``, weighted damped least squares with null-space priorities; ``qp``, a cascade of QPs with
+inequalities through qpsolvers) within the joint position and velocity limits, and writes
 
 * ``command``: the joint velocity setpoints as ``sensor_msgs/JointState`` — ``name`` (the
   program's joints) and ``velocity``; a JointState rather than a bare array so that every
