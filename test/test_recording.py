@@ -732,15 +732,17 @@ def test_a_recording_is_refused_before_anything_starts_where_it_would_overwrite_
     assert not_a_folder.read_text() == 'mine'
 
 
-def test_a_recording_process_that_dies_while_the_run_goes_on_is_said_and_exits_5(tmp_path):
+@pytest.mark.parametrize('deploy', ['single', 'per-composite'])
+def test_a_recording_process_that_dies_while_the_run_goes_on_is_said_and_exits_5(tmp_path, deploy):
     """The recording process killed (as the OOM killer or a full disk would end it): before, the run
     ended with exit 0 and named the broken file as its recording. Now a warning comes at once and
-    with the verdict, the exit code is 5, and itasc-recover reads what was written until then."""
+    with the verdict, the exit code is 5, and itasc-recover reads what was written until then: per
+    composite, what the composite processes streamed too (they go on without it)."""
     from itasc_bringup.recording.recover import recover
 
     mcap = tmp_path / 'run.mcap'
     with Spawned([sys.executable, '-m', 'itasc_bringup.bootstrap', 'approach_object', '--duration', '3',
-                  '--record', str(mcap)]) as app:
+                  '--deploy', deploy, '--record', str(mcap)]) as app:
         app.wait_for_line('[state] approach_object: Active.Run.Running', timeout=120)
         time.sleep(1.5)  # more than a flush period of the writer: a chunk is on disk
         writers = list(started_here(command='recording.writer'))
@@ -754,4 +756,5 @@ def test_a_recording_process_that_dies_while_the_run_goes_on_is_said_and_exits_5
     messages, cut_off = recover(mcap, tmp_path / 'recovered.mcap')
     assert cut_off and messages > 100
     _, recovered = _read_all(tmp_path / 'recovered.mcap')
-    assert any(topic == '/approach_object/itasc/Solver/command' for topic, _, _ in recovered)
+    topics = {topic for topic, _, _ in recovered}
+    assert {'/approach_object/itasc/Solver/command', '/approach_object/itasc/AvoidObstacle/Rows/state'} <= topics

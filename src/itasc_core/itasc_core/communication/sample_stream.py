@@ -46,13 +46,16 @@ from .ports import LocalBus, OutputPort
 from .qos import DATA_QOS, qos_profiles
 
 __all__ = ['FrameSender', 'SampleStream', 'TOPIC', 'MESSAGES', 'FLUSH', 'CLOSE', 'FRAME', 'RECORD', 'BATCH',
-           'abstract_address', 'under']
+           'SEND_PERIOD', 'abstract_address', 'under']
 
 TOPIC, MESSAGES, FLUSH, CLOSE = 1, 2, 3, 4
 FRAME = struct.Struct('<BI')
 RECORD = struct.Struct('<IqqI')
 #: Messages are sent once this many bytes are waiting (or on flush).
 BATCH = 1 << 16
+#: A stream sends what waits at least this often [s], however little: what a process killed
+#: later held back is lost, and the writer flushes the bag every second for ``mcap recover``.
+SEND_PERIOD = 0.1
 
 
 def abstract_address(name: str) -> str:
@@ -176,6 +179,7 @@ class SampleStream:
         #: tapped samples not sent yet: (key, tapped at [ns], sample)
         self._pending: list[tuple[int, int, Any]] = []
         self._closed = False
+        self._sent_at = time.monotonic()
         self._unwatch = bus.watch(self._appeared)
         for port in bus.outputs():
             self._appeared(port)
@@ -219,7 +223,8 @@ class SampleStream:
                     data = encoded[id(sample)] = serialize(sample)
                 records.append((key, data, tapped_at, tapped_at))
             self._sender.write_all(records)
-        else:
+        if time.monotonic() - self._sent_at >= SEND_PERIOD:
+            self._sent_at = time.monotonic()
             self._sender.send_waiting()
         self._check()
 
