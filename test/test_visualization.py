@@ -403,6 +403,36 @@ def _check_layout_against(layout: dict, messages: dict[str, list], *, app: str) 
     assert f'/{app}/markers' in used and '/diagnostics' in used and '/tf' in messages
 
 
+def test_the_bootstrap_reads_each_composites_state_once_for_its_console_and_its_diagnostics():
+    """The console and ``/diagnostics`` both follow every composite's state. Each had a DDS reader of
+    its own in the bootstrap's process, two a composite (Fast DDS pairs every endpoint a process
+    creates with every one of the other kind it holds: each reader made every later writer of a
+    program's bring-up slower, ``bench/bench_endpoints.py``). The diagnostics now take what the
+    console's reader receives, and still say every composite's state."""
+    import signal
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    from processes import Spawned
+    from ros_client import ros_node, spin_until
+
+    namespaces = [f'/{APP}', f'/{APP}/itasc', *(f'/{APP}/itasc/{t}' for t in ('ApproachObject', 'AvoidObstacle'))]
+    with Spawned([*BOOTSTRAP, APP]) as run:
+        run.wait_for_line(f'[state] {APP}: Active.Run.Running', timeout=120)
+        with ros_node('observer') as (node, executor):
+            received: list[DiagnosticArray] = []
+            node.create_subscription(DiagnosticArray, '/diagnostics', received.append, 10)
+
+            def all_running() -> bool:
+                return any(all(s.message.startswith('Active.Run.Running') for s in m.status if
+                               s.name.split(': ')[1] in namespaces) for m in received)
+            assert spin_until(executor, all_running, 20.0), [s.message for m in received[-1:] for s in m.status]
+            readers = {ns: sorted(f'{i.node_namespace}/{i.node_name}' for i in node.get_subscriptions_info_by_topic(
+                f'{ns}/state') if i.node_name == 'bootstrap') for ns in namespaces}
+        run.send_signal(signal.SIGINT)
+        assert run.finish(timeout=90) == 0, run.output()
+    assert readers == dict.fromkeys(namespaces, [f'/{APP}/bootstrap']), readers
+
+
 def test_a_burst_of_transitions_is_published_together_and_the_last_array_holds_every_final_state():
     """A program of many Tasks makes hundreds of transitions as it starts: /diagnostics gets them
     together (the bootstrap's executor, which also ticks, built an array of every composite's

@@ -272,7 +272,7 @@ def main(argv: list[str] | None = None) -> int:
         # robot_description, TF, markers, /diagnostics
         from .visualization import FIRST_DRAWING_TIMEOUT, start_visualization
         visualization = start_visualization(args.app, model=model, node=node, composer=composer, recorder=recorder,
-                                            observers=[watch.observer])
+                                            observers=[watch.observer], states=watch.on_state)
 
         raiser.raise_event(event(root.name, CONFIGURE))  # the root's Coordinator, in this process: by its event hub
 

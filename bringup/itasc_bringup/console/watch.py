@@ -39,6 +39,8 @@ class Watch:
         """``elsewhere``: see :class:`..observe.Observer`."""
         self.facts = facts
         self._on_transition = on_transition
+        #: Told of every state received (:meth:`on_state`).
+        self._state_listeners: list[Callable[[CoordinatorState], None]] = []
         for namespace in facts.composites.values():
             node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
         self.observer = Observer(node, elsewhere=elsewhere)
@@ -53,8 +55,16 @@ class Watch:
             self.observer.samples(topic, SolverStatus, lambda topic, sample: pending.append((None, topic, sample)),
                                   qos=WATCH_QOS)
 
+    def on_state(self, listener: Callable[[CoordinatorState], None]) -> None:
+        """Hand every composite state this Watch receives to ``listener`` too (the process's other
+        readers of them would each be one more DDS reader per composite: a reader costs every later
+        endpoint of the process, see ``bench/bench_endpoints.py``)."""
+        self._state_listeners.append(listener)
+
     def _on_state(self, msg: CoordinatorState) -> None:
         self._on_transition(self.facts.on_state(msg))
+        for listener in self._state_listeners:
+            listener(msg)
 
     def poll(self, timer) -> None:
         """Feed the facts the Task and Solver samples that came since the last poll, and the root

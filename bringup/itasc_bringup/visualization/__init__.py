@@ -93,10 +93,12 @@ def _is_application(path) -> bool:
     return isinstance(data, dict) and 'application' in data
 
 
-def start_visualization(app: str, *, model, node, composer, recorder=None, observers=()) -> Visualization:
+def start_visualization(app: str, *, model, node, composer, recorder=None, observers=(),
+                        states=None) -> Visualization:
     """Diagnostics of every composite of ``model`` on ``node``; for an iTaSC application, the
     visualization process; ``recorder`` records the global topics and the markers; what the
-    ``observers`` of the process already read over DDS is not read again (:class:`.feed.LatestSamples`).
+    ``observers`` of the process already read over DDS is not read again (:class:`.feed.LatestSamples`),
+    nor the composites' states that ``states`` hands over (:class:`.diagnostics.Diagnostics`).
     Its ``end()`` is also called when this process exits."""
     from itasc_core.composition.model import walk
 
@@ -114,7 +116,7 @@ def start_visualization(app: str, *, model, node, composer, recorder=None, obser
     composites = {m.name: path for path, m in walk(model)}
     solvers = [f'{path}/Solver/status' for path, m in walk(model) if any(e.name == 'Solver' for e in m.entities)]
     Diagnostics(node, app=model.name, composites=composites, timer=lambda: composer.timer,  # lives as long as the node
-                solvers=LatestSamples(node, dict.fromkeys(solvers, SolverStatus), observers=observers))
+                solvers=LatestSamples(node, dict.fromkeys(solvers, SolverStatus), observers=observers), states=states)
     path = resolve_app(app)
     if not _is_application(path):
         return Visualization(end=lambda: None)  # a composition model of the pattern itself: no robots to show

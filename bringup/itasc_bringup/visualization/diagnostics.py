@@ -9,10 +9,10 @@ tick time of the Timer (paper §6.2), the Solver's status and the last Safety re
 the newest ``e_emergency``, e.g. ``Driver_panda_silent: stale on value``).
 
 It lives in the bootstrap, next to the Timer it reads, as subscriptions to the composites' state
-and event topics (written on a change only) and a 1 Hz timer on the bootstrap's node: none of it
-runs inside the tick. The Solver status, written every tick, is not subscribed to (a reader would
-cost each tick a send, see :mod:`.feed`): it is the Solver output's newest sample when a status
-is published.
+and event topics (written on a change only; the states through the console's readers, when it is
+handed them: ``states``) and a 1 Hz timer on the bootstrap's node: none of it runs inside the
+tick. The Solver status, written every tick, is not subscribed to (a reader would cost each tick a
+send, see :mod:`.feed`): it is the Solver output's newest sample when a status is published.
 """
 
 from __future__ import annotations
@@ -55,7 +55,10 @@ class Diagnostics:
     Solver status is the newest of ``solvers``."""
 
     def __init__(self, node: Node, *, app: str, composites: dict[str, str], timer: Callable[[], Any],
-                 solvers: 'LatestSamples', period: float = 1.0) -> None:
+                 solvers: 'LatestSamples', period: float = 1.0,
+                 states: Callable[[Callable[[CoordinatorState], None]], None] | None = None) -> None:
+        """``states(listener)``: hands ``listener`` every state of ``composites`` that readers of the
+        process already receive (:meth:`..console.watch.Watch.on_state`); None: subscribe here."""
         self._node = node
         self._app = app
         self._timer = timer
@@ -65,8 +68,11 @@ class Diagnostics:
         self._solvers = solvers
         self._shown: dict[str, tuple[bytes, str]] = {}
         self.publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DATA_QOS)
-        for namespace in composites.values():
-            node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
+        if states is not None:
+            states(self._on_state)
+        else:
+            for namespace in composites.values():
+                node.create_subscription(CoordinatorState, f'{namespace}/state', self._on_state, STATE_QOS)
         # the process's event readers (its event hub), not one more reader of every event topic
         self._events = EventListener(node, topics=[events_topic(ns) for ns in composites.values()], immediate=True,
                                      on_priority=self._on_event, accept=lambda name: name == SAFETY_EVENT)
