@@ -68,6 +68,7 @@ from rclpy.subscription import Subscription
 from itasc_core.communication.cdr import serialize
 from itasc_core.communication.ports import OutputPort
 from itasc_core.communication.qos import DATA_QOS
+from itasc_core.communication.sample_stream import under
 
 from ..observe import Observer
 from .bag import qos_profiles
@@ -89,11 +90,6 @@ def _matches(reader: QoSProfile, writer: QoSProfile) -> bool:
     return (reader.reliability != ReliabilityPolicy.RELIABLE or writer.reliability == ReliabilityPolicy.RELIABLE) \
         and (reader.durability != DurabilityPolicy.TRANSIENT_LOCAL
              or writer.durability == DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-def _under(topic: str, prefix: str) -> bool:
-    prefix = '/' + prefix.strip('/')
-    return prefix == '/' or topic == prefix or topic.startswith(prefix + '/')
 
 
 #: The most graph queries one scan makes. rclpy holds the interpreter in each (~0.1 ms), and a
@@ -200,7 +196,7 @@ class Recorder(Node):
             if budget <= 0:
                 break
             if topic not in self._readers and topic not in self._idle and topic not in self._skipped \
-                    and topic not in self.exclude and topic not in self._streamed and _under(topic, self.prefix):
+                    and topic not in self.exclude and topic not in self._streamed and under(topic, self.prefix):
                 budget -= self._discover(topic, types)
         # a round over the recorded topics and those without a publisher, a few per scan
         tapped = self._observer.tapped
@@ -293,7 +289,7 @@ class Recorder(Node):
         few new topics a scan, and a spinning run's began ~1-2 s late."""
         topic = port.topic
         if topic not in self.topics and topic not in self._skipped and topic not in self.exclude \
-                and _under(topic, self.prefix):
+                and under(topic, self.prefix):
             self.record(topic, port.spec.msg_type_name, qos=DATA_QOS)
 
     def _subscribe(self, topic: str, type_name: str, *, qos: QoSProfile, offered: list[QoSProfile]) -> None:
