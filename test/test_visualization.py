@@ -221,6 +221,8 @@ def test_diagnostics_report_safety_and_its_reason_within_a_second_of_a_driver_fa
             displays, application = started_here(command='itasc_bringup.visualization.node'), run.process.pid
             lower = min(19, os.getpriority(os.PRIO_PROCESS, application) + 10)  # 19: the lowest there is
             assert displays and all(os.getpriority(os.PRIO_PROCESS, pid) == lower for pid in displays), displays
+            # ... and under SCHED_IDLE (`chrt -p`): it runs when a core has nothing else to run
+            assert all(os.sched_getscheduler(pid) == os.SCHED_IDLE for pid in displays), displays
             # a driver killed before the application heard it would get the start-up grace (5 s), not
             # the silence timeout: the two processes find each other over DDS in seconds on a busy machine
             running_at = time.monotonic()
