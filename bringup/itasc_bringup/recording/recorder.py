@@ -65,7 +65,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 
-from itasc_core.communication.cdr import serialize
+from itasc_core.communication.cdr import serialize_all
 from itasc_core.communication.ports import OutputPort
 from itasc_core.communication.qos import DATA_QOS
 from itasc_core.communication.sample_stream import under
@@ -229,16 +229,9 @@ class Recorder(Node):
         if not self._pending:
             return
         pending, self._pending = self._pending, []
-        # a sample handed to two outputs (a driver's joint state, also on <robot>/joint_states) is
-        # encoded once; the pending list holds every sample, so no id is reused within it
-        encoded: dict[int, bytes] = {}
-        messages: list[tuple[str, int, bytes, int | None, int, int]] = []
-        for topic, channel_id, tapped_at, sample in pending:
-            data = encoded.get(id(sample))
-            if data is None:
-                data = encoded[id(sample)] = serialize(sample)
-            messages.append((topic, channel_id, data, tapped_at, 0, tapped_at))
-        self._write_all(messages)
+        encoded = serialize_all(sample for *_, sample in pending)
+        self._write_all([(topic, channel_id, data, tapped_at, 0, tapped_at)
+                         for (topic, channel_id, tapped_at, _), data in zip(pending, encoded)])
 
     def _qos(self, publishers: list) -> QoSProfile:
         offered = [p.qos_profile for p in publishers]

@@ -33,11 +33,11 @@ import importlib
 import math
 import struct
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
-__all__ = ['encoder', 'serialize', 'sample_decoder', 'received_as_sample']
+__all__ = ['encoder', 'serialize', 'serialize_all', 'sample_decoder', 'received_as_sample']
 
 Encode = Callable[[Any], bytes]
 
@@ -243,6 +243,20 @@ def serialize(obj: Any) -> bytes:
 
     from itasc_core.communication.samples import as_message
     return serialize_message(as_message(obj))
+
+
+def serialize_all(samples: Iterable[Any]) -> list[bytes]:
+    """The CDR bytes of each of ``samples`` (a tick's, tapped for a recording); a sample given more
+    than once (a Driver's joint state, also on ``<robot>/joint_states``) is encoded once. The
+    samples are all alive until this returns, so no ``id`` is reused among them."""
+    encoded: dict[int, bytes] = {}
+    out = []
+    for sample in samples:
+        data = encoded.get(id(sample))
+        if data is None:
+            data = encoded[id(sample)] = serialize(sample)
+        out.append(data)
+    return out
 
 
 class _Fields:

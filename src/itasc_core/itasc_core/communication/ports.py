@@ -490,12 +490,16 @@ class InputPort:
     def switched_off(self, topic: str) -> bool:
         """Whether ``topic`` is read over DDS from a composite that this process has switched off
         (:meth:`LocalBus.set_idle`): what came from there was written before, and holds no more."""
-        return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.idle)
+        return self._remote_from(topic, self._bus.idle)
 
     def stopping(self, topic: str) -> bool:
         """Whether ``topic`` is read over DDS from a composite that this process commanded to stop
         (:meth:`LocalBus.set_stopping`): its samples stop coming on purpose."""
-        return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in self._bus.stopping)
+        return self._remote_from(topic, self._bus.stopping)
+
+    def _remote_from(self, topic: str, namespaces: frozenset[str]) -> bool:
+        """Whether ``topic`` is read over DDS from a composite of one of ``namespaces``."""
+        return topic in self.remote and any(topic.startswith(namespace + '/') for namespace in namespaces)
 
     def deliver(self, msg: Any, topic: str, now: float | None = None) -> None:
         """Take a sample (or its ROS message, turned into the sample) from ``topic``, arrived

@@ -41,7 +41,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from .cdr import serialize
+from .cdr import serialize_all
 from .ports import LocalBus, OutputPort
 from .qos import DATA_QOS, qos_profiles
 
@@ -214,15 +214,9 @@ class SampleStream:
         if self._pending:
             pending = self._pending[:]
             del self._pending[:]
-            # a sample handed to two outputs is encoded once; no id is reused within the list
-            encoded: dict[int, bytes] = {}
-            records = []
-            for key, tapped_at, sample in pending:
-                data = encoded.get(id(sample))
-                if data is None:
-                    data = encoded[id(sample)] = serialize(sample)
-                records.append((key, data, tapped_at, tapped_at))
-            self._sender.write_all(records)
+            encoded = serialize_all(sample for *_, sample in pending)
+            self._sender.write_all([(key, data, tapped_at, tapped_at)
+                                    for (key, tapped_at, _), data in zip(pending, encoded)])
         if time.monotonic() - self._sent_at >= SEND_PERIOD:
             self._sent_at = time.monotonic()
             self._sender.send_waiting()
